@@ -1,0 +1,196 @@
+"""Fitting candidate nodes to a domain: size field, truncation, projection,
+wall nodes, and merging of degenerate triangles."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from .geometry import edge_distance, outline_lengths, project_to_edge
+from .pslg import Layout, Triangulation, triangulate
+from .quality import MERGE_ASPECT, angles, aspect_ratio, edge_lengths
+
+PROJECT_FRACTION = 0.5
+"""Nodes closer to the domain outline than this times the local size are
+projected onto it; nodes closer to a particle are dropped."""
+
+WALL_MERGE_FRACTION = 0.5
+"""Wall nodes closer than this times the local size are merged."""
+
+
+class Sizing:
+    """Target edge length ``h(x) = min_k max(dl_k, s_k |x - c_k|)``, capped at ``h_max``.
+
+    Each source ``k`` is a particle (or a group's circle) with centre ``c_k``,
+    surface edge length ``dl_k`` and growth slope ``s_k``. For Eq. 4 with the
+    default growth factor, ``s_k = dl_k / r0_k``: the local size equals the
+    ring spacing ``r_{i+1} - r_i = dl r_i / r0`` on every ring.
+    """
+
+    def __init__(self, centers: NDArray[np.float64], dl: NDArray[np.float64],
+                 slope: NDArray[np.float64], h_max: float | None = None) -> None:
+        self.centers = np.atleast_2d(np.asarray(centers, dtype=np.float64))
+        self.dl = np.atleast_1d(np.asarray(dl, dtype=np.float64))
+        self.slope = np.atleast_1d(np.asarray(slope, dtype=np.float64))
+        self.h_max = h_max
+        self._tree = cKDTree(self.centers) if self.dl.size > 8 else None
+
+    def per_source(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Sizes of every source at ``x``, shape ``(k, M)``."""
+        r = np.hypot(x[0][None, :] - self.centers[:, 0:1], x[1][None, :] - self.centers[:, 1:2])
+        return np.maximum(self.dl[:, None], self.slope[:, None] * r)
+
+    def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        if x.shape[1] == 0:
+            return np.zeros(0)
+        if self._tree is None:
+            h = self.per_source(x).min(axis=0)
+        else:
+            # the nearest few centres decide the minimum for similar sources
+            _, idx = self._tree.query(x.T, k=min(8, self.dl.size))
+            r = np.hypot(x[0][:, None] - self.centers[idx, 0], x[1][:, None] - self.centers[idx, 1])
+            h = np.maximum(self.dl[idx], self.slope[idx] * r).min(axis=1)
+        return h if self.h_max is None else np.minimum(h, self.h_max)
+
+
+def near_particles(particles: Sequence[NDArray[np.float64]], x: NDArray[np.float64],
+                   gap: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Points inside a particle or closer than ``gap`` (per point) to one."""
+    bad = np.zeros(x.shape[1], dtype=bool)
+    if not particles or x.shape[1] == 0:
+        return bad
+    tree = cKDTree(x.T)
+    gmax = float(gap.max())
+    for P in particles:
+        c = P.mean(axis=1)
+        R = float(np.max(np.hypot(*(P - c[:, None]))))
+        idx = np.asarray(tree.query_ball_point(c, R + gmax), dtype=np.int64)
+        if idx.size:
+            d, _ = edge_distance(P, x[:, idx])
+            bad[idx[d > -gap[idx]]] = True
+    return bad
+
+
+def truncate(D: NDArray[np.float64], particles: Sequence[NDArray[np.float64]],
+             x: NDArray[np.float64], sizing: Sizing,
+             fraction: float = PROJECT_FRACTION) -> tuple[NDArray, NDArray, NDArray]:
+    """Drop candidate nodes outside the domain, project near-wall ones onto it.
+
+    Returns ``(free, wall_points, wall_edge)``: interior nodes kept, and the
+    projections ``(2, k)`` with the index of the domain edge they lie on.
+    Nodes inside a particle or closer than ``fraction * h`` to one are dropped.
+    """
+    d, k = edge_distance(D, x)
+    keep = d > 0.0
+    x, d, k = x[:, keep], d[keep], k[keep]
+    h = sizing(x)
+    near = d < fraction * h
+    s = project_to_edge(D, k[near], x[:, near])
+    E = np.roll(D, -1, axis=1) - D
+    E = E / np.hypot(*E)
+    wall = D[:, k[near]] + s * E[:, k[near]]
+    free = x[:, ~near]
+    free = free[:, ~near_particles(particles, free, fraction * h[~near])]
+    return free, wall, k[near]
+
+
+def wall_nodes(D: NDArray[np.float64], proj: NDArray[np.float64], proj_edge: NDArray,
+               sizing: Sizing, fraction: float = WALL_MERGE_FRACTION) -> tuple[NDArray, NDArray]:
+    """Nodes along the domain outline: corners, projected nodes, gap fillers.
+
+    Projected nodes closer than ``fraction * h`` to a kept one are merged;
+    gaps longer than ``1.5 h`` (``h`` at the gap's midpoint) are split
+    evenly. Returns ``(points (2, n), edge index (n,))`` with the corners first.
+    """
+    nd = D.shape[1]
+    L = outline_lengths(D)
+    E = (np.roll(D, -1, axis=1) - D) / L
+    pts, edges = [D], [np.arange(nd)]
+    for j in range(nd):
+        mine = proj_edge == j
+        s = np.sort(np.hypot(*(proj[:, mine] - D[:, j:j + 1])))
+        hs = sizing(D[:, j:j + 1] + s * E[:, j:j + 1])
+        h_end = float(sizing(D[:, (j + 1) % nd:(j + 1) % nd + 1])[0])
+        kept = [0.0]
+        for sk, hk in zip(s, hs, strict=True):
+            if sk - kept[-1] >= fraction * hk and L[j] - sk >= fraction * max(hk, h_end):
+                kept.append(float(sk))
+        kept.append(float(L[j]))
+        new = []
+        for a, b in zip(kept[:-1], kept[1:], strict=True):
+            hm = float(sizing(D[:, j:j + 1] + 0.5 * (a + b) * E[:, j:j + 1])[0])
+            n = int(np.rint((b - a) / hm))
+            if n >= 2:
+                new.extend(a + (b - a) * np.arange(1, n) / n)
+        s_all = np.array(sorted(kept[1:-1] + new))
+        pts.append(D[:, j:j + 1] + s_all * E[:, j:j + 1])
+        edges.append(np.full(s_all.size, j))
+    return np.hstack(pts), np.concatenate(edges)
+
+
+def movable(layout: Layout) -> NDArray[np.bool_]:
+    """Which nodes cleanup may delete: free nodes and non-corner wall nodes."""
+    m = np.zeros(layout.points().shape[1], dtype=bool)
+    m[layout.n_corners:layout.n_wall] = True
+    m[layout.n_frozen:] = True
+    return m
+
+
+def remove_nodes(layout: Layout, drop: NDArray[np.int64]) -> Layout:
+    """Layout without the given node indices (free or non-corner wall nodes)."""
+    nw, nf = layout.n_wall, layout.n_frozen
+    keep_wall = np.ones(nw, dtype=bool)
+    keep_wall[drop[drop < nw]] = False
+    keep_free = np.ones(layout.free.shape[1], dtype=bool)
+    keep_free[drop[drop >= nf] - nf] = False
+    return Layout(domain=layout.domain, edge_names=layout.edge_names,
+                  particles=layout.particles, wall=layout.wall[:, keep_wall],
+                  wall_edge=layout.wall_edge[keep_wall], free=layout.free[:, keep_free],
+                  fixed=layout.fixed, fixed_segments=layout.fixed_segments)
+
+
+def degenerate_nodes(tri: Triangulation, can_go: NDArray[np.bool_],
+                     max_aspect: float = MERGE_ASPECT) -> NDArray[np.int64]:
+    """Nodes whose removal merges each degenerate triangle with its neighbours.
+
+    For every triangle with ``R / (2 r) > max_aspect``: an endpoint of its
+    shortest edge if one may be removed (a needle collapses onto its
+    neighbour), else its widest-angle vertex (a flat cap), else none.
+    Free nodes are preferred over wall nodes.
+    """
+    q = aspect_ratio(tri.points, tri.t)
+    bad = np.flatnonzero(q > max_aspect)
+    if bad.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    t = tri.t[:, bad]
+    L = edge_lengths(tri.points, t)
+    ang = angles(tri.points, t)
+    out = set()
+    for j in range(bad.size):
+        k = int(np.argmin(L[:, j]))
+        ends = [int(t[(k + 1) % 3, j]), int(t[(k + 2) % 3, j])]
+        cands = [v for v in ends if can_go[v]]
+        if not cands:
+            v = int(t[int(np.argmax(ang[:, j])), j])
+            cands = [v] if can_go[v] else []
+        if cands:
+            # prefer the free node (the larger index: free nodes come last)
+            out.add(max(cands))
+    return np.array(sorted(out), dtype=np.int64)
+
+
+def merge_degenerate(layout: Layout, max_aspect: float = MERGE_ASPECT,
+                     rounds: int = 4) -> tuple[Layout, Triangulation]:
+    """Remove nodes of degenerate triangles and re-triangulate until none is left
+    that can be fixed by removing a movable node (at most ``rounds`` passes)."""
+    tri = triangulate(layout)
+    for _ in range(rounds):
+        drop = degenerate_nodes(tri, movable(layout), max_aspect)
+        if drop.size == 0:
+            break
+        layout = remove_nodes(layout, drop)
+        tri = triangulate(layout)
+    return layout, tri
