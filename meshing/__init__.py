@@ -1,13 +1,23 @@
 """Graded and uniform triangle meshes around convex particles (paper Section 5).
 
 Independent of any fluid code: takes plain ``(2, N)`` counter-clockwise
-outlines and returns ``skfem.MeshTri`` objects with named boundaries.
+outlines and returns ``skfem.MeshTri`` objects with named boundaries
+(``"wall"``, ``"left"``, ``"right"``, ``"bottom"``, ``"top"``,
+``"particle0"``, ...).
+
+Builders: :func:`graded_mesh` (concentric circles, Eq. 4),
+:func:`uniform_mesh` (equidistant), :func:`group_mesh` (fine region around a
+particle group, graded outside). Moving particles: :func:`move_particles`,
+:func:`remesh_needed`, :func:`remesh`. Inspection: :func:`mesh_stats`,
+:func:`plot_mesh`.
 """
 
-from .graded import graded_mesh
+from .graded import graded_mesh, ring_radii
+from .group import group_mesh
 from .plot import plot_mesh
 from .quality import MeshStats, mesh_stats, remesh_needed
+from .remesh import move_particles, remesh
 from .uniform import uniform_mesh
 
-__all__ = ["MeshStats", "graded_mesh", "mesh_stats", "plot_mesh", "remesh_needed",
-           "uniform_mesh"]
+__all__ = ["MeshStats", "graded_mesh", "group_mesh", "mesh_stats", "move_particles",
+           "plot_mesh", "remesh", "remesh_needed", "ring_radii", "uniform_mesh"]

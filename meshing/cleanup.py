@@ -4,6 +4,7 @@ wall nodes, and merging of degenerate triangles."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -69,6 +70,8 @@ def near_particles(particles: Sequence[NDArray[np.float64]], x: NDArray[np.float
         R = float(np.max(np.hypot(*(P - c[:, None]))))
         idx = np.asarray(tree.query_ball_point(c, R + gmax), dtype=np.int64)
         if idx.size:
+            idx = idx[np.hypot(*(x[:, idx] - c[:, None])) <= R + gap[idx]]
+        if idx.size:
             d, _ = edge_distance(P, x[:, idx])
             bad[idx[d > -gap[idx]]] = True
     return bad
@@ -98,34 +101,42 @@ def truncate(D: NDArray[np.float64], particles: Sequence[NDArray[np.float64]],
 
 
 def wall_nodes(D: NDArray[np.float64], proj: NDArray[np.float64], proj_edge: NDArray,
-               sizing: Sizing, fraction: float = WALL_MERGE_FRACTION) -> tuple[NDArray, NDArray]:
-    """Nodes along the domain outline: corners, projected nodes, gap fillers.
+               sizing: Sizing, fixed: NDArray[np.float64] | None = None,
+               fixed_edge: NDArray | None = None,
+               fraction: float = WALL_MERGE_FRACTION) -> tuple[NDArray, NDArray]:
+    """Nodes along the domain outline: corners, fixed nodes, projected nodes, gap fillers.
 
-    Projected nodes closer than ``fraction * h`` to a kept one are merged;
-    gaps longer than ``1.5 h`` (``h`` at the gap's midpoint) are split
-    evenly. Returns ``(points (2, n), edge index (n,))`` with the corners first.
+    Projected nodes closer than ``fraction * h`` to a kept one (or a corner
+    or fixed node) are merged; gaps longer than ``1.5 h`` (``h`` at the gap's
+    midpoint) are split evenly. Returns ``(points (2, n), edge index (n,))``
+    ordered corners, ``fixed`` (unchanged), then the others.
     """
     nd = D.shape[1]
     L = outline_lengths(D)
     E = (np.roll(D, -1, axis=1) - D) / L
-    pts, edges = [D], [np.arange(nd)]
+    if fixed is None:
+        fixed, fixed_edge = np.zeros((2, 0)), np.zeros(0, dtype=np.int64)
+    pts, edges = [D, fixed], [np.arange(nd), np.asarray(fixed_edge, dtype=np.int64)]
     for j in range(nd):
         mine = proj_edge == j
         s = np.sort(np.hypot(*(proj[:, mine] - D[:, j:j + 1])))
         hs = sizing(D[:, j:j + 1] + s * E[:, j:j + 1])
-        h_end = float(sizing(D[:, (j + 1) % nd:(j + 1) % nd + 1])[0])
-        kept = [0.0]
+        fix = np.hypot(*(fixed[:, fixed_edge == j] - D[:, j:j + 1]))
+        anchors = np.sort(np.concatenate([[0.0, L[j]], fix]))
+        h_anchor = sizing(D[:, j:j + 1] + anchors * E[:, j:j + 1])
+        kept = []
         for sk, hk in zip(s, hs, strict=True):
-            if sk - kept[-1] >= fraction * hk and L[j] - sk >= fraction * max(hk, h_end):
+            far = np.abs(anchors - sk) >= fraction * np.maximum(hk, h_anchor)
+            if np.all(far) and (not kept or sk - kept[-1] >= fraction * hk):
                 kept.append(float(sk))
-        kept.append(float(L[j]))
+        allpos = np.sort(np.concatenate([anchors, kept]))
         new = []
-        for a, b in zip(kept[:-1], kept[1:], strict=True):
+        for a, b in zip(allpos[:-1], allpos[1:], strict=True):
             hm = float(sizing(D[:, j:j + 1] + 0.5 * (a + b) * E[:, j:j + 1])[0])
             n = int(np.rint((b - a) / hm))
             if n >= 2:
                 new.extend(a + (b - a) * np.arange(1, n) / n)
-        s_all = np.array(sorted(kept[1:-1] + new))
+        s_all = np.array(sorted(kept + new))
         pts.append(D[:, j:j + 1] + s_all * E[:, j:j + 1])
         edges.append(np.full(s_all.size, j))
     return np.hstack(pts), np.concatenate(edges)
@@ -134,7 +145,7 @@ def wall_nodes(D: NDArray[np.float64], proj: NDArray[np.float64], proj_edge: NDA
 def movable(layout: Layout) -> NDArray[np.bool_]:
     """Which nodes cleanup may delete: free nodes and non-corner wall nodes."""
     m = np.zeros(layout.points().shape[1], dtype=bool)
-    m[layout.n_corners:layout.n_wall] = True
+    m[layout.n_wall_frozen:layout.n_wall] = True
     m[layout.n_frozen:] = True
     return m
 
@@ -146,10 +157,8 @@ def remove_nodes(layout: Layout, drop: NDArray[np.int64]) -> Layout:
     keep_wall[drop[drop < nw]] = False
     keep_free = np.ones(layout.free.shape[1], dtype=bool)
     keep_free[drop[drop >= nf] - nf] = False
-    return Layout(domain=layout.domain, edge_names=layout.edge_names,
-                  particles=layout.particles, wall=layout.wall[:, keep_wall],
-                  wall_edge=layout.wall_edge[keep_wall], free=layout.free[:, keep_free],
-                  fixed=layout.fixed, fixed_segments=layout.fixed_segments)
+    return replace(layout, wall=layout.wall[:, keep_wall],
+                   wall_edge=layout.wall_edge[keep_wall], free=layout.free[:, keep_free])
 
 
 def degenerate_nodes(tri: Triangulation, can_go: NDArray[np.bool_],

@@ -237,3 +237,32 @@ def positive(value: ArrayLike | None, name: str, upper: float | None = None,
     if upper is not None and v > upper:
         raise ValueError(f"{name}: must be <= {upper:.6g}{what}, got {v:.6g}")
     return v
+
+
+def clip_convex(P: NDArray[np.float64], D: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Part of convex polygon ``P`` inside convex polygon ``D`` (both ccw).
+
+    Sutherland-Hodgman clipping; returns a ``(2, M)`` ccw outline, ``M = 0``
+    when they do not intersect.
+    """
+    out = P.T.copy()
+    for k in range(D.shape[1]):
+        a, b = D[:, k], D[:, (k + 1) % D.shape[1]]
+        e = b - a
+        if out.shape[0] == 0:
+            break
+        side = e[0] * (out[:, 1] - a[1]) - e[1] * (out[:, 0] - a[0])
+        res = []
+        for i in range(out.shape[0]):
+            j = (i + 1) % out.shape[0]
+            if side[i] >= 0.0:
+                res.append(out[i])
+            if (side[i] >= 0.0) != (side[j] >= 0.0):
+                t = side[i] / (side[i] - side[j])
+                res.append(out[i] + t * (out[j] - out[i]))
+        out = np.array(res).reshape(-1, 2)
+        if out.shape[0]:
+            # drop repeated points (vertices exactly on a clipping line)
+            step = np.hypot(*(np.roll(out, -1, axis=0) - out).T)
+            out = out[step > 1e-12 * max(float(np.max(np.abs(out))), 1e-300)]
+    return out.T

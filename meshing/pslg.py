@@ -2,8 +2,9 @@
 
 A :class:`Layout` holds the nodes sorted by how they may move:
 
-* ``wall``: nodes on the domain outline (corners first, never moved; the
-  others slide along their edge),
+* ``wall``: nodes on the domain outline (corners first and then
+  ``n_wall_fixed`` further nodes, never moved; the others slide along their
+  edge),
 * ``particles``: particle outlines (never moved),
 * ``fixed``: other nodes that are never moved (a group's fine region and its
   transition polygon) with optional interior segments between them,
@@ -41,6 +42,15 @@ class Layout:
     fixed: NDArray[np.float64] = field(default_factory=lambda: np.zeros((2, 0)))
     fixed_segments: NDArray[np.int64] = field(
         default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    n_wall_fixed: int = 0
+    """Wall nodes after the corners that never move (a group's fine region).
+    ``fixed_segments`` index ``fixed``; a negative entry ``-1 - i`` means the
+    frozen wall node ``i`` (corners and fixed wall nodes keep their indices)."""
+
+    @property
+    def n_wall_frozen(self) -> int:
+        """Leading wall nodes that never move: corners and fixed wall nodes."""
+        return self.n_corners + self.n_wall_fixed
 
     @property
     def n_corners(self) -> int:
@@ -133,7 +143,8 @@ def triangulate(layout: Layout, quality: str = "") -> Triangulation:
         marks = np.append(marks, np.full(k.size, 2 + nd + p))
         off += P.shape[1]
     if layout.fixed_segments.size:
-        segs = np.vstack([segs, off + layout.fixed_segments])
+        fs = layout.fixed_segments
+        segs = np.vstack([segs, np.where(fs >= 0, off + fs, -1 - fs)])
         marks = np.append(marks, np.full(layout.fixed_segments.shape[0], INTERIOR_MARKER))
     data = {"vertices": pts.T, "segments": segs, "segment_markers": marks[:, None]}
     if layout.particles:

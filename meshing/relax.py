@@ -13,6 +13,7 @@ rebuilt between rounds, so edges reconnect towards nearer nodes.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,7 +68,7 @@ def relax(layout: Layout, sizing: Sizing, keep_out: Sequence[NDArray[np.float64]
         Step size (fraction of the net spring force applied per step).
     """
     D = layout.domain
-    nd, nw, nf = layout.n_corners, layout.n_wall, layout.n_frozen
+    nd, nw, nf = layout.n_wall_frozen, layout.n_wall, layout.n_frozen
     edge_dir = np.roll(D, -1, axis=1) - D
     edge_len = np.hypot(*edge_dir)
     edge_dir = edge_dir / edge_len
@@ -92,15 +93,15 @@ def relax(layout: Layout, sizing: Sizing, keep_out: Sequence[NDArray[np.float64]
             xf[:, ok] = trial[:, ok]
             # wall nodes slide along their edge, never past a neighbour
             if nw > nd:
-                s = np.sum((x[:, nd:nw] - D[:, wall_e[nd:]]) * edge_dir[:, wall_e[nd:]], axis=0)
+                s_all = np.sum((x[:, :nw] - D[:, wall_e]) * edge_dir[:, wall_e], axis=0)
+                s_all[:layout.n_corners] = 0.0
+                s = s_all[nd:]
                 ds = np.sum(F[:, nd:nw] * edge_dir[:, wall_e[nd:]], axis=0)
-                gap = _neighbour_gap(s, wall_e[nd:], edge_len)
+                gap = _neighbour_gap(s_all, wall_e, edge_len)[nd:]
                 ds = np.clip(ds, -0.3 * gap, 0.3 * gap)
                 s_new = s + ds
                 x[:, nd:nw] = D[:, wall_e[nd:]] + s_new * edge_dir[:, wall_e[nd:]]
-        layout = Layout(domain=D, edge_names=layout.edge_names, particles=layout.particles,
-                        wall=x[:, :nw], wall_edge=wall_e, free=x[:, nf:], fixed=layout.fixed,
-                        fixed_segments=layout.fixed_segments)
+        layout = replace(layout, wall=x[:, :nw], free=x[:, nf:])
     return layout
 
 
