@@ -1,0 +1,328 @@
+"""DEMSystem: particles, walls, contact law and the time-stepping loop."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import overlap_numba, pipeline
+from .broadphase import NeighbourList
+from .contact_law import ContactHistory, ContactLaw
+from .integrator import BDF2History, correct, predict, stable_time_step
+from .particles import Body, ParticleArrays, rotate_outlines
+from .walls import WallArrays, box_walls
+
+__all__ = ["DEMSystem"]
+
+
+def _repad(V: np.ndarray, nmax: int) -> np.ndarray:
+    """Pad ``(K, n, 2)`` outlines to ``nmax`` vertices by repeating vertex 0."""
+    if V.shape[1] >= nmax:
+        return V
+    pad = np.repeat(V[:, :1], nmax - V.shape[1], axis=1)
+    return np.concatenate([V, pad], axis=1)
+
+
+class DEMSystem:
+    """A dry (or fluid-forced) 2D DEM of convex polygons and fixed walls.
+
+    Parameters
+    ----------
+    particles
+        Sequence of :class:`~skfem_granular.dem.Particle`.
+    walls
+        Sequence of :class:`~skfem_granular.dem.Polygon` (or ``(2, n)`` arrays).
+    law
+        :class:`~skfem_granular.dem.ContactLaw` (E, mu, gamma, ...).
+    gravity
+        Gravitational acceleration ``(gx, gy)``.
+    fluid_density
+        ``rho_f``: gravity acts as ``(rho_p - rho_f) A g`` (0 for dry scenes).
+    domain
+        Optional box ``(x0, y0, x1, y1)`` every particle must lie inside.
+    dt
+        Default step for :meth:`step` / maximal substep of :meth:`advance`;
+        ``None`` means the stable estimate :attr:`dt_stable`.
+    overlap_tolerance
+        Allowed initial overlap area relative to the smaller particle.
+    margin
+        Verlet skin; default a fifth of the mean bounding radius.
+    backend
+        ``"numba"``, ``"numpy"`` or ``"auto"`` (numba if installed).
+
+    Attributes
+    ----------
+    positions, velocities
+        ``(2, N)`` views of the state (centroids); ``angles``,
+        ``angular_velocities`` ``(N,)`` views.
+    mass, inertia
+        ``(N,)`` mass and moment of inertia per unit length.
+    external_force, external_torque
+        ``(2, N)`` and ``(N,)`` forces held constant during a step (the fluid
+        coupling writes here); ``force_callbacks`` is a list of
+        ``f(system, t) -> (F (2, N), T (N,))`` evaluated every force evaluation.
+    force, torque
+        Total force and torque of the last evaluation.
+    contacts
+        :class:`~skfem_granular.dem.contact_law.ContactForces` of the last step.
+    """
+
+    def __init__(self, particles, walls=(), *, law: ContactLaw | None = None,
+                 gravity=(0.0, -9.81), fluid_density: float = 0.0, domain=None,
+                 dt: float | None = None, overlap_tolerance: float = 1e-3,
+                 margin: float | None = None, backend: str = "auto"):
+        self.particles = ParticleArrays(particles)
+        self.walls = WallArrays(walls)
+        self.law = ContactLaw() if law is None else law
+        if not isinstance(self.law, ContactLaw):
+            raise ValueError(f"law = {law!r}: must be a ContactLaw")
+        self.gravity = np.asarray(gravity, dtype=float).reshape(2)
+        if not np.all(np.isfinite(self.gravity)):
+            raise ValueError(f"gravity = {gravity}: must be finite")
+        if not (np.isfinite(fluid_density) and fluid_density >= 0):
+            raise ValueError(f"fluid_density = {fluid_density}: must be finite and >= 0")
+        self.fluid_density = float(fluid_density)
+        if backend == "auto":
+            backend = "numba" if overlap_numba.AVAILABLE else "numpy"
+        if backend not in ("numba", "numpy") or (backend == "numba"
+                                                  and not overlap_numba.AVAILABLE):
+            raise ValueError(f"backend = {backend!r}: must be 'numpy', 'auto' or "
+                             "'numba' (numba installed)")
+        self.backend = backend
+        p = self.particles
+        N = p.n
+        nmax = max(p.shadow_local.shape[1], self.walls.vertices.shape[1])
+        self._shadow_local = _repad(p.shadow_local, nmax)
+        self._wall_vertices = _repad(self.walls.vertices, nmax)
+        self._count = np.concatenate([p.shadow_count, self.walls.count]).astype(np.int64)
+        self.positions = p.q[:2]
+        self.angles = p.q[2]
+        self.velocities = p.v[:2]
+        self.angular_velocities = p.v[2]
+        self.mass = p.mass
+        self.inertia = p.inertia
+        self.external_force = np.zeros((2, N))
+        self.external_torque = np.zeros(N)
+        self.force_callbacks = []
+        self.force = np.zeros((2, N))
+        self.torque = np.zeros(N)
+        self.t = 0.0
+        self.steps = 0
+        self.bdf2 = BDF2History()
+        self.contact_history = ContactHistory()
+        if margin is None:
+            margin = 0.2 * float(p.radius.mean()) if N else 0.0
+        self.neighbours = NeighbourList(margin)
+        self.contacts = None
+        self.dt_stable = stable_time_step(self.mass, self.law.E)
+        self.dt = self._check_dt(self.dt_stable if dt is None else dt, "dt")
+        self.domain = None if domain is None else tuple(float(x) for x in domain)
+        self._validate_domain()
+        self._validate_overlaps(overlap_tolerance)
+
+    # ------------------------------------------------------------------ setup
+    @classmethod
+    def in_box(cls, particles, box, wall_thickness: float, **kwargs) -> DEMSystem:
+        """System with :func:`~skfem_granular.dem.box_walls` around ``box = (x0, y0, x1, y1)``."""
+        walls = box_walls(*box, wall_thickness) + list(kwargs.pop("walls", []))
+        return cls(particles, walls, domain=box, **kwargs)
+
+    @property
+    def n(self) -> int:
+        """Number of particles."""
+        return self.particles.n
+
+    @property
+    def bodies(self) -> list[Body]:
+        """Thin views on the particles."""
+        return [Body(self, k) for k in range(self.n)]
+
+    def _check_dt(self, dt, field: str = "dt") -> float:
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError):
+            raise ValueError(f"{field} = {dt!r}: must be a number > 0") from None
+        bound = self.dt_stable
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"{field} = {dt!r}: must be finite and > 0")
+        if dt > bound * (1.0 + 1e-9):
+            k = int(np.argmin(self.mass))
+            raise ValueError(
+                f"{field} = {dt:.6g}: must be <= {bound:.6g} s, the stable step "
+                f"0.1*pi*sqrt(min m / E) (min m = {self.mass[k]:.6g} of particles[{k}], "
+                f"E = {self.law.E:.6g})")
+        return dt
+
+    def _validate_domain(self):
+        if self.domain is None or self.n == 0:
+            return
+        x0, y0, x1, y1 = self.domain
+        tol = 1e-9 * max(x1 - x0, y1 - y0)
+        V = rotate_outlines(self.particles.shadow_local, self.particles.q)
+        lo, hi = V.min(axis=1), V.max(axis=1)
+        bad = (lo[:, 0] < x0 - tol) | (lo[:, 1] < y0 - tol) | (hi[:, 0] > x1 + tol) | (
+            hi[:, 1] > y1 + tol)
+        if np.any(bad):
+            k = int(np.nonzero(bad)[0][0])
+            raise ValueError(
+                f"particles[{k}].shape spans x in [{lo[k, 0]:.6g}, {hi[k, 0]:.6g}], "
+                f"y in [{lo[k, 1]:.6g}, {hi[k, 1]:.6g}]: must lie inside the box "
+                f"domain = {self.domain}")
+
+    def _validate_overlaps(self, tol: float):
+        if self.n == 0:
+            return
+        q = self.particles.q
+        I, J = NeighbourList(0.0).update(q[:2], self.particles.radius, self.walls.vertices)
+        V = pipeline.body_vertices(self, q)
+        I, J, area, *_ = pipeline.contact_geometry(self, V, q, I, J)
+        ref = np.where(J < self.n, np.minimum(self.particles.area[I],
+                                              self.particles.area[np.minimum(J, self.n - 1)]),
+                       self.particles.area[I])
+        rel = area / ref
+        if np.any(rel > tol):
+            k = int(np.argmax(rel))
+            other = (f"particles[{J[k]}]" if J[k] < self.n
+                     else f"walls[{J[k] - self.n}]")
+            raise ValueError(
+                f"particles[{I[k]}] and {other} overlap at start by {rel[k]:.3g} of the "
+                f"smaller area: must be <= overlap_tolerance = {tol:g}")
+
+    # ------------------------------------------------------------ geometry
+    def body_centroids(self, q=None) -> np.ndarray:
+        """``(2, N + W)`` centroids of particles then walls."""
+        q = self.particles.q if q is None else q
+        return np.concatenate([q[:2], self.walls.centroid], axis=1)
+
+    def _outlines(self, local, count, indices):
+        idx = np.arange(self.n) if indices is None else np.asarray(indices, dtype=int)
+        V = rotate_outlines(local[idx], self.particles.q[:, idx])
+        return [V[k, : count[i]].T.copy() for k, i in enumerate(idx)]
+
+    def shadow_outlines(self, indices=None) -> list[np.ndarray]:
+        """World shadow outlines (contacts): list of ``(2, n)`` ccw arrays."""
+        return self._outlines(self.particles.shadow_local, self.particles.shadow_count, indices)
+
+    def core_outlines(self, indices=None) -> list[np.ndarray]:
+        """World core outlines (the fluid boundary): list of ``(2, n)`` ccw arrays."""
+        return self._outlines(self.particles.core_local, self.particles.core_count, indices)
+
+    def wall_outlines(self) -> list[np.ndarray]:
+        """Wall outlines (the same for contacts and fluid)."""
+        return self.walls.outlines()
+
+    def point_velocity(self, i: int, points) -> np.ndarray:
+        """Rigid velocity ``V_i + omega_i x (x - X_i)`` at ``points`` ``(2, M)``."""
+        x = np.asarray(points, dtype=float)
+        d = x - self.positions[:, i].reshape(2, *([1] * (x.ndim - 1)))
+        w = self.angular_velocities[i]
+        return np.stack([self.velocities[0, i] - w * d[1], self.velocities[1, i] + w * d[0]])
+
+    # ------------------------------------------------------------ dynamics
+    def evaluate(self, q, v, t: float, dt: float):
+        """Run the force pipeline at state ``(q, v)``; return ``(a (3, N), contacts)``."""
+        F, T = pipeline.reset_forces(self, t)
+        I, J = pipeline.broad_phase(self, q)
+        V = pipeline.body_vertices(self, q)
+        I, J, area, point, normal, length = pipeline.contact_geometry(self, V, q, I, J)
+        cf = pipeline.apply_contact_law(self, I, J, area, point, normal, length, q, v, dt)
+        pipeline.accumulate(self, cf, q, F, T)
+        self.force, self.torque = F, T
+        a = np.empty_like(q)
+        a[:2] = F / self.mass
+        a[2] = T / self.inertia
+        return a, cf
+
+    def reset_history(self) -> None:
+        """Forget the BDF2 history (call after changing positions/velocities by hand)."""
+        self.bdf2 = BDF2History()
+
+    def step(self, dt: float | None = None) -> None:
+        """One BDF2 predictor-corrector step of size ``dt`` (default :attr:`dt`)."""
+        dt = self.dt if dt is None else self._check_dt(dt)
+        p = self.particles
+        if self.bdf2.a is None:
+            self.bdf2.a, self.contacts = self.evaluate(p.q, p.v, self.t, 0.0)
+        qp, vp = predict(p.q, p.v, self.bdf2, dt)
+        a, cf = self.evaluate(qp, vp, self.t + dt, dt)
+        q_new, v_new = correct(p.q, p.v, self.bdf2, a, dt)
+        p.q[...] = q_new
+        p.v[...] = v_new
+        self.contact_history.replace(cf.keys, cf.ft_spring)
+        self.contacts = cf
+        self.t += dt
+        self.steps += 1
+
+    def advance(self, dt_outer: float, max_substep: float | None = None) -> int:
+        """Advance by ``dt_outer`` in ``n`` equal substeps ``<= max_substep``.
+
+        ``max_substep`` defaults to :attr:`dt`. External forces are held
+        during the substeps. Returns ``n``.
+        """
+        if not (np.isfinite(dt_outer) and dt_outer > 0):
+            raise ValueError(f"dt_outer = {dt_outer!r}: must be finite and > 0")
+        h = self.dt if max_substep is None else self._check_dt(max_substep, "max_substep")
+        n = max(1, math.ceil(dt_outer / h * (1.0 - 1e-12)))
+        for _ in range(n):
+            self.step(dt_outer / n)
+        return n
+
+    # ------------------------------------------------------------ diagnostics
+    def kinetic_energy(self) -> float:
+        """Total translational plus rotational kinetic energy."""
+        v = self.particles.v
+        return float(0.5 * (self.mass * (v[0] ** 2 + v[1] ** 2)).sum()
+                     + 0.5 * (self.inertia * v[2] ** 2).sum())
+
+    def elastic_energy(self) -> float:
+        """Elastic energy estimate of the current contacts (see ContactForces)."""
+        return 0.0 if self.contacts is None else float(self.contacts.energy.sum())
+
+    def contact_count(self) -> np.ndarray:
+        """``(N,)`` number of contacts of every particle (last step)."""
+        c = np.zeros(self.n, dtype=np.int64)
+        if self.contacts is not None and self.contacts.i.size:
+            c += np.bincount(self.contacts.i, minlength=self.n)
+            j = self.contacts.j[self.contacts.j < self.n]
+            c += np.bincount(j, minlength=self.n)
+        return c
+
+    def momentum(self) -> tuple[np.ndarray, float]:
+        """Linear momentum ``(2,)`` and angular momentum about the origin."""
+        v, q = self.particles.v, self.particles.q
+        P = (self.mass * v[:2]).sum(axis=1)
+        Lz = float((self.mass * (q[0] * v[1] - q[1] * v[0]) + self.inertia * v[2]).sum())
+        return P, Lz
+
+    # ------------------------------------------------------------ checkpoints
+    def save_state(self) -> dict:
+        """Copy of the full dynamic state (positions, velocities, BDF2 and contact history)."""
+        return {
+            "t": self.t, "steps": self.steps,
+            "q": self.particles.q.copy(), "v": self.particles.v.copy(),
+            "bdf2": self.bdf2.as_dict(),
+            "contact_keys": self.contact_history.keys.copy(),
+            "contact_ft": self.contact_history.ft.copy(),
+            "external_force": self.external_force.copy(),
+            "external_torque": self.external_torque.copy(),
+        }
+
+    def restore_state(self, state: dict) -> None:
+        """Restore a state from :meth:`save_state` (arrays are copied in place)."""
+        if state["q"].shape != self.particles.q.shape:
+            raise ValueError(f"state q has shape {state['q'].shape}: must be "
+                             f"{self.particles.q.shape} (same particles)")
+        self.t = float(state["t"])
+        self.steps = int(state["steps"])
+        self.particles.q[...] = state["q"]
+        self.particles.v[...] = state["v"]
+        self.bdf2 = BDF2History.from_dict(state["bdf2"])
+        self.contact_history = ContactHistory()
+        self.contact_history.keys = np.array(state["contact_keys"], dtype=np.int64)
+        self.contact_history.ft = np.array(state["contact_ft"], dtype=float)
+        self.external_force[...] = state["external_force"]
+        self.external_torque[...] = state["external_torque"]
+        self.neighbours.invalidate()
+        self.contacts = None
+
