@@ -12,11 +12,15 @@ from scipy.spatial import cKDTree
 
 from .geometry import edge_distance, outline_lengths, project_to_edge
 from .pslg import Layout, Triangulation, triangulate
-from .quality import MERGE_ASPECT, angles, aspect_ratio, edge_lengths
+from .quality import MERGE_ASPECT, angles, aspect_ratio, edge_lengths, signed_areas
 
 PROJECT_FRACTION = 0.5
 """Nodes closer to the domain outline than this times the local size are
 projected onto it; nodes closer to a particle are dropped."""
+
+SHORT_FRACTION = 0.6
+"""An edge shorter than this times the local size makes a bad triangle a needle
+(merged by removing a node); a flat cap's apex is that close to its base."""
 
 WALL_MERGE_FRACTION = 0.5
 """Wall nodes closer than this times the local size are merged."""
@@ -161,43 +165,54 @@ def remove_nodes(layout: Layout, drop: NDArray[np.int64]) -> Layout:
                    wall_edge=layout.wall_edge[keep_wall], free=layout.free[:, keep_free])
 
 
-def degenerate_nodes(tri: Triangulation, can_go: NDArray[np.bool_],
-                     max_aspect: float = MERGE_ASPECT) -> NDArray[np.int64]:
+def degenerate_nodes(tri: Triangulation, can_go: NDArray[np.bool_], sizing: Sizing,
+                     max_aspect: float = MERGE_ASPECT,
+                     short: float = SHORT_FRACTION) -> NDArray[np.int64]:
     """Nodes whose removal merges each degenerate triangle with its neighbours.
 
-    For every triangle with ``R / (2 r) > max_aspect``: an endpoint of its
-    shortest edge if one may be removed (a needle collapses onto its
-    neighbour), else its widest-angle vertex (a flat cap), else none.
-    Free nodes are preferred over wall nodes.
+    For every triangle with ``R / (2 r) > max_aspect``: if its shortest edge
+    is shorter than ``short * h`` (a needle), an endpoint of that edge that
+    may be removed; else if its widest-angle vertex lies closer than
+    ``short * h`` to the opposite edge (a flat cap), that vertex. Free nodes
+    are preferred over wall nodes. Triangles that are bad because of a
+    *large* gap are left to relaxation and repair: removing nodes there
+    would make them worse.
     """
     q = aspect_ratio(tri.points, tri.t)
     bad = np.flatnonzero(q > max_aspect)
     if bad.size == 0:
         return np.zeros(0, dtype=np.int64)
+    p = tri.points
     t = tri.t[:, bad]
-    L = edge_lengths(tri.points, t)
-    ang = angles(tri.points, t)
+    L = edge_lengths(p, t)
+    ang = angles(p, t)
+    h = sizing(p[:, t].mean(axis=1))
+    area = np.abs(signed_areas(p, t))
     out = set()
     for j in range(bad.size):
         k = int(np.argmin(L[:, j]))
-        ends = [int(t[(k + 1) % 3, j]), int(t[(k + 2) % 3, j])]
-        cands = [v for v in ends if can_go[v]]
+        cands = []
+        if L[k, j] < short * h[j]:
+            ends = [int(t[(k + 1) % 3, j]), int(t[(k + 2) % 3, j])]
+            cands = [v for v in ends if can_go[v]]
         if not cands:
-            v = int(t[int(np.argmax(ang[:, j])), j])
-            cands = [v] if can_go[v] else []
+            w = int(np.argmax(ang[:, j]))
+            v = int(t[w, j])
+            if can_go[v] and 2.0 * area[j] / L[w, j] < short * h[j]:
+                cands = [v]
         if cands:
             # prefer the free node (the larger index: free nodes come last)
             out.add(max(cands))
     return np.array(sorted(out), dtype=np.int64)
 
 
-def merge_degenerate(layout: Layout, max_aspect: float = MERGE_ASPECT,
+def merge_degenerate(layout: Layout, sizing: Sizing, max_aspect: float = MERGE_ASPECT,
                      rounds: int = 4) -> tuple[Layout, Triangulation]:
     """Remove nodes of degenerate triangles and re-triangulate until none is left
-    that can be fixed by removing a movable node (at most ``rounds`` passes)."""
+    that removing a movable node can fix (at most ``rounds`` passes)."""
     tri = triangulate(layout)
     for _ in range(rounds):
-        drop = degenerate_nodes(tri, movable(layout), max_aspect)
+        drop = degenerate_nodes(tri, movable(layout), sizing, max_aspect)
         if drop.size == 0:
             break
         layout = remove_nodes(layout, drop)

@@ -12,28 +12,45 @@ and joined by a constrained Delaunay triangulation.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import skfem
 from numpy.typing import NDArray
 
-from .cleanup import Sizing, merge_degenerate, truncate, wall_nodes
+from .cleanup import Sizing, merge_degenerate, near_particles, truncate, wall_nodes
 from .geometry import (
     as_domain,
     as_particles,
     centroid,
     check_layout,
+    inside,
     outline_lengths,
     positive,
     subdivide,
 )
 from .pslg import Layout, Triangulation
+from .quality import angles, aspect_ratio, edge_lengths
 from .relax import relax
 from .skfem_mesh import Recipe, to_meshtri
 
 SIGMA_MAX = 4.0
 """Largest accepted growth factor."""
+
+SIGMA_SPREAD = 1.5
+"""Largest accepted ``(sigma - 1) / (Delta_l / r0)``: ring spacing over node spacing."""
+
+DL_MAX_RATIO = 2.0 * float(np.sin(np.pi / 10.0))
+"""Largest outline edge length over circumradius for graded circles (a 10-gon)."""
+
+SAFE_MIN_ANGLE = 20.0
+"""Guaranteed smallest angle (degrees) of a built mesh."""
+
+SAFE_MAX_ASPECT = 3.0
+"""Guaranteed largest ``R / (2 r)`` of a built mesh."""
+
+REPAIR_ROUNDS = 3
+"""Rounds of node insertion for triangles outside the guaranteed bounds."""
 
 
 @dataclass(frozen=True)
@@ -94,6 +111,22 @@ def sizing_of(all_rings: Sequence[Rings], h_max: float | None = None) -> Sizing:
     return Sizing(C, dl, s, h_max)
 
 
+def check_sigma_range(sigma: float | None, dl: float, r0: float, what: str) -> None:
+    """Raise ValueError unless ``1 < sigma <= 1 + SIGMA_SPREAD * dl / r0``.
+
+    Every circle carries as many nodes as the outline, so the triangles'
+    radial over tangential size is ``(sigma - 1) r0 / dl``; beyond
+    :data:`SIGMA_SPREAD` they become too slender to clean up.
+    """
+    if sigma is None:
+        return
+    hi = 1.0 + SIGMA_SPREAD * dl / r0
+    if sigma > hi:
+        raise ValueError(f"sigma: must be in (1, {hi:.4g}] for {what} (1 + {SIGMA_SPREAD:g} "
+                         f"Delta_l / r0 with Delta_l = {dl:.4g}, r0 = {r0:.4g}; Eq. 4 "
+                         f"default {default_sigma(dl, r0):.4g}), got {sigma:.4g}")
+
+
 def check_sigma(sigma: float | None) -> float | None:
     if sigma is None:
         return None
@@ -124,11 +157,54 @@ def prepare(domain: object, particles: object, delta_l: float | None
 
 def build(layout: Layout, sizing: Sizing, keep_out: Sequence[NDArray[np.float64]],
           relax_rounds: int) -> tuple[Layout, Triangulation]:
-    """Cleanup pipeline: merge degenerate triangles, relax, merge again."""
-    layout, _ = merge_degenerate(layout)
+    """Cleanup pipeline: merge degenerate triangles, relax, merge again, repair.
+
+    Repair: a triangle that still violates the guaranteed bounds (angle
+    below :data:`SAFE_MIN_ANGLE` or ``R / (2 r)`` above
+    :data:`SAFE_MAX_ASPECT`) usually has a short frozen edge (a particle or
+    wall segment) and a far apex; a node is inserted at the apex of the
+    equilateral triangle on that edge, then the layout is relaxed once and
+    cleaned again (at most :data:`REPAIR_ROUNDS` times). Well-shaped meshes
+    pass through unchanged.
+    """
+    layout, _ = merge_degenerate(layout, sizing)
     if relax_rounds:
         layout = relax(layout, sizing, keep_out, rounds=relax_rounds)
-    return merge_degenerate(layout)
+    layout, tri = merge_degenerate(layout, sizing)
+    for _ in range(REPAIR_ROUNDS):
+        new = repair_nodes(layout, tri, keep_out, sizing)
+        if new.shape[1] == 0:
+            break
+        layout = relax(replace(layout, free=np.hstack([layout.free, new])), sizing, keep_out,
+                       rounds=1)
+        layout, tri = merge_degenerate(layout, sizing)
+    return layout, tri
+
+
+def repair_nodes(layout: Layout, tri: Triangulation, keep_out: Sequence[NDArray[np.float64]],
+                 sizing: Sizing) -> NDArray[np.float64]:
+    """Equilateral apex points on the shortest edge of every out-of-bounds triangle."""
+    p, t = tri.points, tri.t
+    bad = (angles(p, t).min(axis=0) < SAFE_MIN_ANGLE) | (aspect_ratio(p, t) > SAFE_MAX_ASPECT)
+    if not np.any(bad):
+        return np.zeros((2, 0))
+    t = t[:, bad]
+    L = edge_lengths(p, t)
+    k = np.argmin(L, axis=0)
+    j = np.arange(t.shape[1])
+    a, b, c = p[:, t[(k + 1) % 3, j]], p[:, t[(k + 2) % 3, j]], p[:, t[k, j]]
+    m, e = 0.5 * (a + b), b - a
+    n = np.vstack([-e[1], e[0]])
+    n *= np.sign(np.sum(n * (c - m), axis=0))
+    x = m + 0.5 * np.sqrt(3.0) * n
+    h = 0.25 * np.hypot(*e)
+    ok = inside(layout.domain, x, 0.0)
+    ok[ok] &= ~near_particles(list(keep_out), x[:, ok], h[ok])
+    x = x[:, ok]
+    if x.shape[1] > 1:   # one node per cluster of nearby apexes
+        _, first = np.unique(np.round(x / (0.5 * float(h.min()))), axis=1, return_index=True)
+        x = x[:, np.sort(first)]
+    return x
 
 
 def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
@@ -177,7 +253,15 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
         raise ValueError("particles: graded_mesh needs at least one particle "
                          "(use uniform_mesh for an empty domain)")
     all_rings = []
-    for P in outlines:
+    for k, P in enumerate(outlines):
+        r0 = float(np.max(np.hypot(*(P - centroid(P)[:, None]))))
+        dl = float(np.mean(outline_lengths(P)))
+        if dl > DL_MAX_RATIO * r0:
+            raise ValueError(f"particles[{k}]: outline edges (mean length {dl:.6g}) are "
+                             f"longer than {DL_MAX_RATIO:.3f} r0 = {DL_MAX_RATIO * r0:.6g} "
+                             "(a regular 10-gon's); graded circles need a finer outline: "
+                             f"pass delta_l <= {DL_MAX_RATIO * r0:.6g}")
+        check_sigma_range(sigma, dl, r0, f"particles[{k}]")
         c = centroid(P)
         r_max = float(np.max(np.hypot(*(D - c[:, None]))))
         all_rings.append(rings(P, sigma, r_max))

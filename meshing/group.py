@@ -18,7 +18,16 @@ from numpy.typing import NDArray
 
 from .cleanup import truncate, wall_nodes
 from .geometry import centroid, clip_convex, edge_distance, inside
-from .graded import Rings, build, check_sigma, default_sigma, prepare, ring_nodes, sizing_of
+from .graded import (
+    Rings,
+    build,
+    check_sigma,
+    check_sigma_range,
+    default_sigma,
+    prepare,
+    ring_nodes,
+    sizing_of,
+)
 from .pslg import Layout, fixed_point, triangulate
 from .skfem_mesh import Recipe, to_meshtri
 from .uniform import AREA_FACTOR, MIN_ANGLE, split_walls
@@ -109,6 +118,7 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
                             f"{fixed_point(AREA_FACTOR * np.sqrt(3.0) / 4.0 * h * h)}")
     fixed, fixed_wall, fixed_wall_edge, segs = _fine_nodes(D, T, arc, fine, tri)
     dl = float(np.mean(np.hypot(*(np.roll(C, -1, axis=1) - C))))
+    check_sigma_range(sigma, dl, radius, "the group circle")
     s = default_sigma(dl, radius) if sigma is None else sigma
     r_max = float(np.max(np.hypot(*(D - c[:, None]))))
     n = int(np.ceil(np.log(max(r_max, radius) / radius) / np.log(s) + 1e-9)) + 1
