@@ -67,12 +67,16 @@ def near_particles(particles: Sequence[NDArray[np.float64]], x: NDArray[np.float
     bad = np.zeros(x.shape[1], dtype=bool)
     if not particles or x.shape[1] == 0:
         return bad
-    tree = cKDTree(x.T)
+    few = len(particles) <= 8
+    tree = None if few else cKDTree(x.T)
     gmax = float(gap.max())
     for P in particles:
         c = P.mean(axis=1)
         R = float(np.max(np.hypot(*(P - c[:, None]))))
-        idx = np.asarray(tree.query_ball_point(c, R + gmax), dtype=np.int64)
+        if few:
+            idx = np.arange(x.shape[1])
+        else:
+            idx = np.asarray(tree.query_ball_point(c, R + gmax), dtype=np.int64)
         if idx.size:
             idx = idx[np.hypot(*(x[:, idx] - c[:, None])) <= R + gap[idx]]
         if idx.size:

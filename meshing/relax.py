@@ -19,7 +19,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .cleanup import Sizing, near_particles
-from .geometry import inside
 from .pslg import Layout, triangulate
 
 KEEP_OUT = 0.3
@@ -73,10 +72,14 @@ def relax(layout: Layout, sizing: Sizing, keep_out: Sequence[NDArray[np.float64]
     edge_len = np.hypot(*edge_dir)
     edge_dir = edge_dir / edge_len
     wall_e = layout.wall_edge
+    nc = layout.n_corners
     for _ in range(rounds):
         tri = triangulate(layout)
         e = unique_edges(tri.t)
         x = tri.points.copy()
+        s_all = np.sum((x[:, :nw] - D[:, wall_e]) * edge_dir[:, wall_e], axis=0)
+        s_all[:nc] = 0.0
+        order = np.lexsort((s_all, wall_e))     # stays valid: nodes never pass
         for _ in range(steps):
             F = dt * spring_forces(x, e, sizing)
             # free nodes: limited step, rejected if it leaves the allowed region
@@ -86,21 +89,17 @@ def relax(layout: Layout, sizing: Sizing, keep_out: Sequence[NDArray[np.float64]
             norm = np.hypot(*step)
             step *= np.minimum(1.0, 0.2 * h / np.maximum(norm, 1e-300))
             trial = xf + step
-            ok = inside(D, trial, 0.0)
-            ok[ok] &= _wall_clear(D, trial[:, ok], KEEP_OUT * h[ok])
+            ok = _wall_clear(D, trial, KEEP_OUT * h)
             if keep_out:
                 ok &= ~near_particles(keep_out, trial, KEEP_OUT * h)
             xf[:, ok] = trial[:, ok]
             # wall nodes slide along their edge, never past a neighbour
             if nw > nd:
-                s_all = np.sum((x[:, :nw] - D[:, wall_e]) * edge_dir[:, wall_e], axis=0)
-                s_all[:layout.n_corners] = 0.0
                 s = s_all[nd:]
                 ds = np.sum(F[:, nd:nw] * edge_dir[:, wall_e[nd:]], axis=0)
-                gap = _neighbour_gap(s_all, wall_e, edge_len)[nd:]
-                ds = np.clip(ds, -0.3 * gap, 0.3 * gap)
-                s_new = s + ds
-                x[:, nd:nw] = D[:, wall_e[nd:]] + s_new * edge_dir[:, wall_e[nd:]]
+                gap = _neighbour_gap(s_all, wall_e, edge_len, order)[nd:]
+                s_all[nd:] = s + np.clip(ds, -0.3 * gap, 0.3 * gap)
+                x[:, nd:nw] = D[:, wall_e[nd:]] + s_all[nd:] * edge_dir[:, wall_e[nd:]]
         layout = replace(layout, wall=x[:, :nw], free=x[:, nf:])
     return layout
 
@@ -116,14 +115,16 @@ def _wall_clear(D: NDArray[np.float64], x: NDArray[np.float64],
 
 
 def _neighbour_gap(s: NDArray[np.float64], edge: NDArray[np.int64],
-                   edge_len: NDArray[np.float64]) -> NDArray[np.float64]:
+                   edge_len: NDArray[np.float64], order: NDArray[np.int64]) -> NDArray[np.float64]:
     """Distance of each wall node to its nearer neighbour on the same edge
-    (corners at ``0`` and ``edge_len`` count as neighbours)."""
+    (the edge's end corner counts); ``order`` sorts nodes by edge, then ``s``."""
+    pos, ed = s[order], edge[order]
+    prev = np.empty_like(pos)
+    nxt = np.empty_like(pos)
+    prev[0] = pos[0]
+    prev[1:] = np.where(ed[1:] == ed[:-1], pos[1:] - pos[:-1], pos[1:])
+    nxt[-1] = edge_len[ed[-1]] - pos[-1]
+    nxt[:-1] = np.where(ed[:-1] == ed[1:], pos[1:] - pos[:-1], edge_len[ed[:-1]] - pos[:-1])
     gap = np.empty_like(s)
-    for j in np.unique(edge):
-        idx = np.flatnonzero(edge == j)
-        order = idx[np.argsort(s[idx])]
-        pos = np.concatenate([[0.0], s[order], [edge_len[j]]])
-        g = np.diff(pos)
-        gap[order] = np.minimum(g[:-1], g[1:])
+    gap[order] = np.minimum(prev, nxt)
     return gap
