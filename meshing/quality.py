@@ -84,7 +84,8 @@ def triangle_stats(p: NDArray[np.float64], t: NDArray[np.int64]) -> MeshStats:
     area = np.abs(signed_areas(p, t))
     L = edge_lengths(p, t)
     finite = q[np.isfinite(q)]
-    quant = tuple(float(v) for v in np.quantile(q, [0.0, 0.5, 0.9, 0.99, 1.0]))
+    quant = tuple(float(v) for v in np.quantile(q, [0.0, 0.5, 0.9, 0.99, 1.0],
+                                                 method="inverted_cdf"))
     return MeshStats(
         n_vertices=int(used.size), n_edges=int(n_edges), n_p2_nodes=int(used.size + n_edges),
         n_triangles=int(t.shape[1]), min_angle=float(ang.min()), max_angle=float(ang.max()),
