@@ -115,7 +115,7 @@ class DEMSystem:
             margin = 0.2 * float(p.radius.mean()) if N else 0.0
         self.neighbours = NeighbourList(margin)
         self.contacts = None
-        self.dt_stable = stable_time_step(self.mass, self.law.E)
+        self.dt_stable = stable_time_step(self.mass, self.law.E, self.law.gamma)
         self.dt = self._check_dt(self.dt_stable if dt is None else dt, "dt")
         self.domain = None if domain is None else tuple(float(x) for x in domain)
         self._validate_domain()
@@ -150,8 +150,8 @@ class DEMSystem:
             k = int(np.argmin(self.mass))
             raise ValueError(
                 f"{field} = {dt:.6g}: must be <= {bound:.6g} s, the stable step "
-                f"0.1*pi*sqrt(min m / E) (min m = {self.mass[k]:.6g} of particles[{k}], "
-                f"E = {self.law.E:.6g})")
+                f"0.1*pi*sqrt(min m / E) / max(1, 2 gamma) (min m = {self.mass[k]:.6g} of "
+                f"particles[{k}], E = {self.law.E:.6g}, gamma = {self.law.gamma:g})")
         return dt
 
     def _validate_domain(self):
