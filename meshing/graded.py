@@ -102,13 +102,13 @@ def ring_nodes(outline: NDArray[np.float64], ring: Rings) -> NDArray[np.float64]
     return np.hstack(parts) if parts else np.zeros((2, 0))
 
 
-def sizing_of(all_rings: Sequence[Rings], h_max: float | None = None) -> Sizing:
+def sizing_of(all_rings: Sequence[Rings]) -> Sizing:
     """Size field of a set of particles: ``max(dl, s r)`` with
     ``s = sqrt((sigma - 1) dl / r0)`` (equal to ``dl / r0`` for the default sigma)."""
     C = np.array([r.center for r in all_rings])
     dl = np.array([r.dl for r in all_rings])
     s = np.array([np.sqrt((r.sigma - 1.0) * r.dl / r.r0) for r in all_rings])
-    return Sizing(C, dl, s, h_max)
+    return Sizing(C, dl, s)
 
 
 def check_sigma_range(sigma: float | None, dl: float, r0: float, what: str) -> None:
@@ -125,6 +125,12 @@ def check_sigma_range(sigma: float | None, dl: float, r0: float, what: str) -> N
         raise ValueError(f"sigma: must be in (1, {hi:.4g}] for {what} (1 + {SIGMA_SPREAD:g} "
                          f"Delta_l / r0 with Delta_l = {dl:.4g}, r0 = {r0:.4g}; Eq. 4 "
                          f"default {default_sigma(dl, r0):.4g}), got {sigma:.4g}")
+
+
+def check_rounds(relax_rounds: object) -> None:
+    """Raise ValueError unless ``relax_rounds`` is an integer in ``[0, 20]``."""
+    if not isinstance(relax_rounds, int | np.integer) or not 0 <= relax_rounds <= 20:
+        raise ValueError(f"relax_rounds: must be an integer in [0, 20], got {relax_rounds!r}")
 
 
 def check_sigma(sigma: float | None) -> float | None:
@@ -209,7 +215,7 @@ def repair_nodes(layout: Layout, tri: Triangulation, keep_out: Sequence[NDArray[
 
 def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
                 sigma: float | None = None, delta_l: float | None = None, *,
-                h_max: float | None = None, relax_rounds: int = 4) -> skfem.MeshTri:
+                relax_rounds: int = 4) -> skfem.MeshTri:
     """Graded triangle mesh around particles (concentric circles, Eq. 4).
 
     Parameters
@@ -221,18 +227,22 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
         List of convex counter-clockwise ``(2, N)`` outlines (or objects with
         ``.vertices``), disjoint and strictly inside the domain; at least one.
     sigma
-        Growth factor of the circle radii, ``1 < sigma <= 4``; default
-        ``1 + Delta_l / r0`` (Eq. 4) per particle.
+        Growth factor of the circle radii; default ``1 + Delta_l / r0``
+        (Eq. 4) per particle, ``r0`` its circumradius about its centroid and
+        ``Delta_l`` its mean outline edge length. Allowed:
+        ``1 < sigma <= 1 + 1.5 Delta_l / r0`` for every particle (each circle
+        carries one node per outline node, so a larger sigma makes slender
+        triangles).
     delta_l
         Outline resolution: ``None`` keeps each outline's own edges; a value
         ``0 < delta_l <= r0`` (smallest particle's circumradius) splits every
-        edge into equal parts no longer than ``delta_l``. Particle outline
-        nodes are never moved.
-    h_max
-        Optional cap on the element size far from the particles.
+        edge into equal parts no longer than ``delta_l``; the new nodes lie on
+        the straight edges. Graded circles need outline edges no longer than
+        ``0.618 r0`` (a regular 10-gon's). Particle outline nodes are never
+        moved.
     relax_rounds
-        Rounds of spring relaxation (each followed by re-triangulation); 0
-        skips relaxation.
+        Rounds of spring relaxation (each followed by re-triangulation),
+        ``0 <= relax_rounds <= 20``; 0 skips relaxation.
 
     Returns
     -------
@@ -253,7 +263,7 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
     :func:`meshing.group_mesh`.
     """
     sigma = check_sigma(sigma)
-    h_max = positive(h_max, "h_max")
+    check_rounds(relax_rounds)
     D, names, outlines = prepare(domain, particles, delta_l)
     if not outlines:
         raise ValueError("particles: graded_mesh needs at least one particle "
@@ -271,7 +281,7 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
         c = centroid(P)
         r_max = float(np.max(np.hypot(*(D - c[:, None]))))
         all_rings.append(rings(P, sigma, r_max))
-    sizing = sizing_of(all_rings, h_max)
+    sizing = sizing_of(all_rings)
     cand = []
     for p, (P, ring) in enumerate(zip(outlines, all_rings, strict=True)):
         x = ring_nodes(P, ring)
@@ -284,5 +294,5 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
                     wall_edge=wall_edge, free=free)
     layout, tri = build(layout, sizing, outlines, relax_rounds)
     recipe = Recipe("graded", domain, tuple(outlines),
-                    dict(sigma=sigma, delta_l=delta_l, h_max=h_max, relax_rounds=relax_rounds))
+                    dict(sigma=sigma, delta_l=delta_l, relax_rounds=relax_rounds))
     return to_meshtri(tri, layout, recipe)

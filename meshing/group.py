@@ -21,6 +21,7 @@ from .geometry import centroid, clip_convex, edge_distance, inside
 from .graded import (
     Rings,
     build,
+    check_rounds,
     check_sigma,
     check_sigma_range,
     default_sigma,
@@ -31,6 +32,9 @@ from .graded import (
 from .pslg import Layout, fixed_point, triangulate
 from .skfem_mesh import Recipe, to_meshtri
 from .uniform import AREA_FACTOR, MIN_ANGLE, split_walls
+
+MIN_CROSSING = 60.0
+"""Smallest accepted angle (degrees) between the group circle and a wall it crosses."""
 
 
 def transition_outline(D: NDArray[np.float64], center: NDArray[np.float64], radius: float,
@@ -61,7 +65,7 @@ def transition_outline(D: NDArray[np.float64], center: NDArray[np.float64], radi
 def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
                h: float | None = None, sigma: float | None = None,
                delta_l: float | None = None, *, center: object = None,
-               radius: float | None = None, h_max: float | None = None,
+               radius: float | None = None,
                relax_rounds: int = 4) -> skfem.MeshTri:
     """Mesh of a particle group: fine inside a circle (or sector), graded outside.
 
@@ -73,18 +77,19 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
         Edge length of the fine region and the transition polygon,
         ``0 < h < radius``; default the particles' mean outline edge length.
     sigma
-        Growth factor of the graded circles, ``1 < sigma <= 4``; default
-        ``1 + Delta_l / r0`` (Eq. 4) with ``r0 = radius`` and ``Delta_l`` the
-        transition polygon's edge length.
+        Growth factor of the graded circles; default ``1 + Delta_l / r0``
+        (Eq. 4) with ``r0 = radius`` and ``Delta_l`` the transition polygon's
+        edge length (about ``h``); allowed ``1 < sigma <= 1 + 1.5 Delta_l / r0``.
     center
         ``(x, y)`` centre of the circle, inside the domain or on its outline;
         default the mean of the particle centroids. On a wall the fine
         region becomes a half disk (a sector in a corner).
     radius
         Circle radius; default the largest distance of a particle vertex from
-        ``center`` plus ``2 h``. Must leave at least ``h`` between every
-        particle and the circle.
-    h_max, relax_rounds
+        ``center`` plus ``2 h``, adapted by :func:`fit_circle` so that the
+        circle crosses walls at 60 degrees or more. Must leave at least ``h``
+        between every particle and the circle.
+    relax_rounds
         As in :func:`meshing.graded_mesh`; relaxation moves graded nodes only.
 
     Returns
@@ -95,6 +100,7 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
         are the facets shared by a fine and a graded element.
     """
     sigma = check_sigma(sigma)
+    check_rounds(relax_rounds)
     D, names, outlines = prepare(domain, particles, delta_l)
     if not outlines:
         raise ValueError("particles: group_mesh needs at least one particle")
@@ -102,16 +108,16 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
     if h is None:
         h = float(np.mean(np.hstack([np.hypot(*(np.roll(P, -1, axis=1) - P))
                                      for P in outlines])))
-    c = _center(center, D, outlines)
-    reach = float(np.max(np.hypot(*(allv - c[:, None]))))
     h = _positive(h, "h")
+    c = _center(center, D, outlines)
     radius_arg = radius
-    radius = reach + 2.0 * h if radius is None else _positive(radius, "radius")
-    if radius < reach + h:
-        raise ValueError(f"radius: must be >= {reach + h:.6g} (farthest particle vertex "
-                         f"from center plus h), got {radius:.6g}")
-    if h_max is not None:
-        h_max = _positive(h_max, "h_max")
+    if radius is not None:
+        radius = _positive(radius, "radius")
+        reach = float(np.max(np.hypot(*(allv - c[:, None]))))
+        if radius < reach + h:
+            raise ValueError(f"radius: must be >= {reach + h:.6g} (farthest particle vertex "
+                             f"from center plus h), got {radius:.6g}")
+    c, radius = fit_circle(D, allv, c, radius, h, free_center=center is None)
     C, T, arc = transition_outline(D, c, radius, h)
     fine = _fine_layout(T, outlines, h)
     tri = triangulate(fine, f"q{fixed_point(MIN_ANGLE)}Ya"
@@ -123,7 +129,7 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
     r_max = float(np.max(np.hypot(*(D - c[:, None]))))
     n = int(np.ceil(np.log(max(r_max, radius) / radius) / np.log(s) + 1e-9)) + 1
     ring = Rings(center=c, r0=radius, dl=dl, sigma=s, radii=radius * s ** np.arange(n))
-    sizing = sizing_of([ring], h_max)
+    sizing = sizing_of([ring])
     free, proj, proj_edge = truncate(D, [T], ring_nodes(C, ring), sizing)
     wall, wall_edge = wall_nodes(D, proj, proj_edge, sizing, fixed_wall, fixed_wall_edge)
     layout = Layout(domain=D, edge_names=names, particles=outlines, wall=wall,
@@ -133,8 +139,53 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
     in_fine = _in_region(tri, T, c, radius, C.shape[1])
     recipe = Recipe("group", domain, tuple(outlines),
                     dict(h=h, sigma=sigma, delta_l=delta_l, center=center, radius=radius_arg,
-                         h_max=h_max, relax_rounds=relax_rounds))
+                         relax_rounds=relax_rounds))
     return to_meshtri(tri, layout, recipe, {"fine": in_fine, "graded": ~in_fine})
+
+
+def fit_circle(D: NDArray[np.float64], allv: NDArray[np.float64], c: NDArray[np.float64],
+               radius: float | None, h: float, free_center: bool) -> tuple[NDArray, float]:
+    """Centre and radius of the group circle, avoiding shallow wall crossings.
+
+    Where the circle meets a wall at less than :data:`MIN_CROSSING` degrees,
+    or passes closer than ``h`` to it, the fine region would end in a thin
+    wedge or sliver. A default circle (``radius=None``) then, in this order:
+    shrinks to keep ``h`` from that wall if the particles allow it; moves its
+    (default) centre onto the wall, which makes the fine region a half disk
+    or sector crossed at right angles (the paper's Fig. 13); grows until it
+    crosses at :data:`MIN_CROSSING` degrees. A given radius that crosses
+    shallowly raises ValueError.
+    """
+    user_radius = radius is not None
+    E = np.roll(D, -1, axis=1) - D
+    n = np.vstack([-E[1], E[0]]) / np.hypot(*E)          # inward normals (ccw)
+    cos_min = float(np.cos(np.radians(MIN_CROSSING)))
+    moved = np.zeros(D.shape[1], dtype=bool)
+    R = None if radius is None else float(radius)
+    grown = False
+    for _ in range(8 * D.shape[1]):
+        reach = float(np.max(np.hypot(*(allv - c[:, None]))))
+        if R is None:
+            R = reach + 2.0 * h
+        d = np.sum(n * (c[:, None] - D), axis=0)          # distance to each edge line
+        bad = np.flatnonzero((d > R * cos_min * (1.0 + 1e-9)) & (d < R + h))
+        if bad.size == 0:
+            return c, R
+        j = int(bad[np.argmin(d[bad])])
+        if user_radius:
+            raise ValueError(
+                f"radius: the circle meets domain edge {j} at "
+                f"{np.degrees(np.arccos(min(d[j] / R, 1.0))):.0f} degrees or passes within "
+                f"h of it; use radius <= {d[j] - h:.6g} or >= {d[j] / cos_min:.6g}, or a "
+                "center on the wall")
+        if not grown and reach + h <= d[j] - h:
+            R = d[j] - h
+        elif free_center and not moved[j] and not grown:
+            c, R, moved[j] = c - d[j] * n[:, j], None, True
+        else:
+            R, grown = d[j] / cos_min * (1.0 + 1e-6), True
+    raise ValueError("center: could not fit a group circle to the domain; give center and "
+                     "radius")
 
 
 def _in_region(tri, T: NDArray, c: NDArray, radius: float, n: int) -> NDArray[np.bool_]:

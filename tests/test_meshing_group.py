@@ -122,3 +122,39 @@ def test_single_particle_group_and_sigma():
     assert s.min_angle >= 20.0 and s.max_aspect <= 3.0
     with pytest.raises(ValueError, match=r"sigma: must be in \(1, "):
         meshing.group_mesh((0.0, 0.0, 3e-3, 11e-3), [P], radius=0.9e-3, sigma=1.5)
+
+
+def crossing_angles(mesh, center, radius, box):
+    """Angles (deg) at which the transition circle meets the walls it crosses."""
+    x0, y0, x1, y1 = box
+    c = np.asarray(center)
+    d = np.array([c[1] - y0, x1 - c[0], y1 - c[1], c[0] - x0])
+    return np.degrees(np.arccos(d[d < radius] / radius))
+
+
+@pytest.mark.parametrize("shift", [0.0, 0.3e-3, 0.55e-3])
+def test_default_circle_never_grazes_a_wall(shift):
+    """A group near the right wall: the default circle shrinks, moves onto the
+    wall or grows, so that it crosses walls at >= 60 degrees; quality holds."""
+    box = (0.0, 0.0, 4e-3, 8e-3)
+    parts = lattice(2, 2, (2.6e-3 + shift, 3.5e-3), pitch=0.7e-3, r=0.25e-3)
+    from meshing.group import fit_circle
+    allv = np.hstack(parts)
+    c0 = np.mean([p.mean(axis=1) for p in parts], axis=0)
+    D = np.array([[0, 4e-3, 4e-3, 0], [0, 0, 8e-3, 8e-3]])
+    h = 2 * 0.25e-3 * np.sin(np.pi / 12)
+    c, R = fit_circle(D, allv, c0, None, h, free_center=True)
+    ang = crossing_angles(None, c, R, box)
+    assert np.all(ang >= 60.0 - 1e-6)
+    gaps = np.array([c[1], 4e-3 - c[0], 8e-3 - c[1], c[0]]) - R
+    assert np.all((gaps >= h - 1e-12) | (gaps <= -R * 0.5 + 1e-12))
+    mesh = meshing.group_mesh(box, parts)
+    s = meshing.mesh_stats(mesh)
+    assert s.min_angle >= 20.0 and s.max_aspect <= 3.0
+
+
+def test_given_radius_grazing_a_wall_is_rejected():
+    parts = lattice(1, 1, (2e-3, 4e-3), r=0.25e-3)
+    with pytest.raises(ValueError, match=r"radius: the circle meets domain edge 1 at \d+ "
+                                         r"degrees or passes within h of it; use radius <="):
+        meshing.group_mesh((0.0, 0.0, 3e-3, 8e-3), parts, radius=0.95e-3)

@@ -56,6 +56,8 @@ BAD = {
                         r"particles\[0\]: vertices 1 and 2 coincide"),
     "no particles": (dict(particles=[]), r"particles: graded_mesh needs at least one"),
     "sigma text": (dict(particles=[DISK], sigma="big"), r"sigma: expected a number"),
+    "relax rounds": (dict(particles=[DISK], relax_rounds=-1),
+                     r"relax_rounds: must be an integer in \[0, 20\]"),
 }
 
 
