@@ -27,38 +27,38 @@ WALL_MERGE_FRACTION = 0.5
 
 
 class Sizing:
-    """Target edge length ``h(x) = min_k max(dl_k, s_k |x - c_k|)``, capped at ``h_max``.
+    """Target edge length ``h(x) = min_k max(dl_k, dl_k + s_k (|x - c_k| - r0_k))``.
 
     Each source ``k`` is a particle (or a group's circle) with centre ``c_k``,
-    surface edge length ``dl_k`` and growth slope ``s_k``. For Eq. 4 with the
-    default growth factor, ``s_k = dl_k / r0_k``: the local size equals the
-    ring spacing ``r_{i+1} - r_i = dl r_i / r0`` on every ring.
+    radius ``r0_k``, surface edge length ``dl_k`` and growth slope
+    ``s_k = sigma_k - 1``: on circles whose spacing grows by ``sigma`` per
+    circle, ``d_{i+1} - d_i = (sigma - 1)(r_{i+1} - r_i)``, so the spacing is
+    linear in the radius. With Eq. 4's default ``sigma = 1 + dl / r0`` this
+    is ``h = dl r / r0``, the ring spacing ``r_{i+1} - r_i = dl r_i / r0``.
     """
 
     def __init__(self, centers: NDArray[np.float64], dl: NDArray[np.float64],
-                 slope: NDArray[np.float64], h_max: float | None = None) -> None:
+                 slope: NDArray[np.float64], r0: NDArray[np.float64]) -> None:
         self.centers = np.atleast_2d(np.asarray(centers, dtype=np.float64))
         self.dl = np.atleast_1d(np.asarray(dl, dtype=np.float64))
         self.slope = np.atleast_1d(np.asarray(slope, dtype=np.float64))
-        self.h_max = h_max
+        self.offset = self.dl - self.slope * np.atleast_1d(np.asarray(r0, dtype=np.float64))
         self._tree = cKDTree(self.centers) if self.dl.size > 8 else None
 
     def per_source(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Sizes of every source at ``x``, shape ``(k, M)``."""
         r = np.hypot(x[0][None, :] - self.centers[:, 0:1], x[1][None, :] - self.centers[:, 1:2])
-        return np.maximum(self.dl[:, None], self.slope[:, None] * r)
+        return np.maximum(self.dl[:, None], self.offset[:, None] + self.slope[:, None] * r)
 
     def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         if x.shape[1] == 0:
             return np.zeros(0)
         if self._tree is None:
-            h = self.per_source(x).min(axis=0)
-        else:
-            # the nearest few centres decide the minimum for similar sources
-            _, idx = self._tree.query(x.T, k=min(8, self.dl.size))
-            r = np.hypot(x[0][:, None] - self.centers[idx, 0], x[1][:, None] - self.centers[idx, 1])
-            h = np.maximum(self.dl[idx], self.slope[idx] * r).min(axis=1)
-        return h if self.h_max is None else np.minimum(h, self.h_max)
+            return self.per_source(x).min(axis=0)
+        # the nearest few centres decide the minimum for similar sources
+        _, idx = self._tree.query(x.T, k=min(8, self.dl.size))
+        r = np.hypot(x[0][:, None] - self.centers[idx, 0], x[1][:, None] - self.centers[idx, 1])
+        return np.maximum(self.dl[idx], self.offset[idx] + self.slope[idx] * r).min(axis=1)
 
 
 def near_particles(particles: Sequence[NDArray[np.float64]], x: NDArray[np.float64],

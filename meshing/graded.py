@@ -34,11 +34,10 @@ from .quality import angles, aspect_ratio, edge_lengths
 from .relax import relax
 from .skfem_mesh import Recipe, to_meshtri
 
-SIGMA_MAX = 4.0
-"""Largest accepted growth factor."""
-
-SIGMA_SPREAD = 1.5
-"""Largest accepted ``(sigma - 1) / (Delta_l / r0)``: ring spacing over node spacing."""
+SIGMA_MAX = 1.6
+"""Largest accepted growth factor given by the user (element size doubling
+within two circles; beyond, the node count per circle drops too abruptly for
+the quality bounds). A 10-gon's default from Eq. 4 may reach 1.618."""
 
 DL_MAX_RATIO = 2.0 * float(np.sin(np.pi / 10.0))
 """Largest outline edge length over circumradius for graded circles (a 10-gon)."""
@@ -55,14 +54,20 @@ REPAIR_ROUNDS = 3
 
 @dataclass(frozen=True)
 class Rings:
-    """Concentric circles around one particle: centre ``(2,)``, ``r0``, outline
-    edge length ``dl``, growth factor ``sigma`` and radii ``(n,)`` (``radii[0] = r0``)."""
+    """Concentric circles around one particle or group.
+
+    ``center`` ``(2,)``; ``r0`` the particle's circumradius; ``dl`` its
+    outline edge length; ``sigma`` the growth factor; ``radii`` ``(n,)``
+    with ``radii[0] = r0``; ``counts`` ``(n,)`` nodes per circle
+    (``counts[0]`` = outline nodes).
+    """
 
     center: NDArray[np.float64]
     r0: float
     dl: float
     sigma: float
     radii: NDArray[np.float64]
+    counts: NDArray[np.int64]
 
 
 def default_sigma(dl: float, r0: float) -> float:
@@ -70,61 +75,77 @@ def default_sigma(dl: float, r0: float) -> float:
     return 1.0 + dl / r0
 
 
-def ring_radii(r0: float, sigma: float, r_max: float) -> NDArray[np.float64]:
-    """Radii ``r_i = r0 sigma**i`` from ``r0`` up to the first one beyond ``r_max``."""
-    n = int(np.ceil(np.log(max(r_max, r0) / r0) / np.log(sigma) + 1e-9)) + 1
-    return r0 * sigma ** np.arange(n)
+def ring_radii(r0: float, sigma: float, r_max: float, dl: float | None = None
+               ) -> NDArray[np.float64]:
+    """Circle radii from ``r0`` up to the first one beyond ``r_max``.
+
+    The spacing starts at ``dl`` and grows by ``sigma`` per circle:
+    ``r_{i+1} = r_i + dl sigma**i``. With ``dl = (sigma - 1) r0`` (the
+    default, and Eq. 4's ``sigma = 1 + dl / r0``) this is
+    ``r_{i+1} = r_i + dl r_i / r0``, i.e. ``r_i = r0 sigma**i``.
+    """
+    q = sigma - 1.0
+    if dl is None:
+        dl = q * r0
+    n = int(np.ceil(np.log(1.0 + max(r_max - r0, 0.0) * q / dl) / np.log(sigma) - 1e-9))
+    i = np.arange(n + 1)
+    if dl == q * r0:
+        return r0 * sigma ** i
+    return r0 + dl * (sigma ** i - 1.0) / q
 
 
-def rings(outline: NDArray[np.float64], sigma: float | None, r_max: float) -> Rings:
-    """The :class:`Rings` of a particle outline (already subdivided)."""
-    c = centroid(outline)
+def rings(outline: NDArray[np.float64], sigma: float | None, r_max: float,
+          center: NDArray[np.float64] | None = None) -> Rings:
+    """The :class:`Rings` of an outline (already subdivided).
+
+    Circle ``i`` has ``N (r_i / r0) (dl / d_i)`` nodes (``d_i = dl sigma**i``
+    its spacing, ``N`` the outline's node count), so that the node spacing
+    along it matches the spacing to the next circle: ``N`` on every circle
+    for Eq. 4's default sigma, fewer for a larger one.
+    """
+    c = centroid(outline) if center is None else center
     r0 = float(np.max(np.hypot(*(outline - c[:, None]))))
     dl = float(np.mean(outline_lengths(outline)))
     s = default_sigma(dl, r0) if sigma is None else sigma
-    return Rings(center=c, r0=r0, dl=dl, sigma=s, radii=ring_radii(r0, s, r_max))
+    radii = ring_radii(r0, s, r_max, None if sigma is None else dl)
+    d = dl * s ** np.arange(radii.size)
+    N = outline.shape[1]
+    counts = np.maximum(3, np.rint(N * radii / r0 * dl / d)).astype(np.int64)
+    counts[0] = N
+    return Rings(center=c, r0=r0, dl=dl, sigma=s, radii=radii, counts=counts)
 
 
 def ring_nodes(outline: NDArray[np.float64], ring: Rings) -> NDArray[np.float64]:
     """Nodes on circles ``1, 2, ...``, ``(2, M)``, ring by ring.
 
-    Even circles carry the outline nodes' polar angles, odd circles the
-    angular midpoints between consecutive outline nodes (the stagger).
+    A circle with as many nodes as the outline carries the outline nodes'
+    polar angles (even circles) or the angular midpoints between
+    consecutive outline nodes (odd circles: the stagger by half a spacing).
+    A circle with fewer nodes spaces them evenly, odd circles again shifted
+    by half a spacing.
     """
     d = outline - ring.center[:, None]
     th = np.arctan2(d[1], d[0])
     dth = np.mod(np.roll(th, -1) - th, 2.0 * np.pi)
     mid = th + 0.5 * dth
     parts = []
-    for i, r in enumerate(ring.radii[1:], start=1):
-        phi = mid if i % 2 else th
+    for i, (r, n) in enumerate(zip(ring.radii[1:], ring.counts[1:], strict=True), start=1):
+        if n == outline.shape[1]:
+            phi = mid if i % 2 else th
+        else:
+            phi = th[0] + 2.0 * np.pi * (np.arange(n) + 0.5 * (i % 2)) / n
         parts.append(ring.center[:, None] + r * np.vstack([np.cos(phi), np.sin(phi)]))
     return np.hstack(parts) if parts else np.zeros((2, 0))
 
 
 def sizing_of(all_rings: Sequence[Rings]) -> Sizing:
-    """Size field of a set of particles: ``max(dl, s r)`` with
-    ``s = sqrt((sigma - 1) dl / r0)`` (equal to ``dl / r0`` for the default sigma)."""
+    """Size field of a set of circle families: the circle spacing, linear in
+    the radius, ``dl + (sigma - 1)(r - r0)`` (``dl r / r0`` for Eq. 4)."""
     C = np.array([r.center for r in all_rings])
     dl = np.array([r.dl for r in all_rings])
-    s = np.array([np.sqrt((r.sigma - 1.0) * r.dl / r.r0) for r in all_rings])
-    return Sizing(C, dl, s)
-
-
-def check_sigma_range(sigma: float | None, dl: float, r0: float, what: str) -> None:
-    """Raise ValueError unless ``1 < sigma <= 1 + SIGMA_SPREAD * dl / r0``.
-
-    Every circle carries as many nodes as the outline, so the triangles'
-    radial over tangential size is ``(sigma - 1) r0 / dl``; beyond
-    :data:`SIGMA_SPREAD` they become too slender to clean up.
-    """
-    if sigma is None:
-        return
-    hi = 1.0 + SIGMA_SPREAD * dl / r0
-    if sigma > hi:
-        raise ValueError(f"sigma: must be in (1, {hi:.4g}] for {what} (1 + {SIGMA_SPREAD:g} "
-                         f"Delta_l / r0 with Delta_l = {dl:.4g}, r0 = {r0:.4g}; Eq. 4 "
-                         f"default {default_sigma(dl, r0):.4g}), got {sigma:.4g}")
+    s = np.array([r.sigma - 1.0 for r in all_rings])
+    r0 = np.array([r.r0 for r in all_rings])
+    return Sizing(C, dl, s, r0)
 
 
 def check_rounds(relax_rounds: object) -> None:
@@ -227,12 +248,15 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
         List of convex counter-clockwise ``(2, N)`` outlines (or objects with
         ``.vertices``), disjoint and strictly inside the domain; at least one.
     sigma
-        Growth factor of the circle radii; default ``1 + Delta_l / r0``
-        (Eq. 4) per particle, ``r0`` its circumradius about its centroid and
-        ``Delta_l`` its mean outline edge length. Allowed:
-        ``1 < sigma <= 1 + 1.5 Delta_l / r0`` for every particle (each circle
-        carries one node per outline node, so a larger sigma makes slender
-        triangles).
+        Growth factor of the element size from one circle to the next,
+        ``1 < sigma <= 1.6``; default ``1 + Delta_l / r0`` (Eq. 4) per
+        particle, ``r0`` its circumradius about its centroid and ``Delta_l``
+        its mean outline edge length. The circle spacing starts at
+        ``Delta_l`` and grows by ``sigma``: ``r_{i+1} = r_i + Delta_l
+        sigma**i``, which for the default is Eq. 4, ``r_{i+1} = r_i + Delta_l
+        r_i / r0``, with one node per outline node on every circle. Another
+        sigma changes the node count per circle so that node spacing and
+        circle spacing stay equal (isotropic triangles).
     delta_l
         Outline resolution: ``None`` keeps each outline's own edges; a value
         ``0 < delta_l <= r0`` (smallest particle's circumradius) splits every
@@ -277,7 +301,6 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
                              f"longer than {DL_MAX_RATIO:.3f} r0 = {DL_MAX_RATIO * r0:.6g} "
                              "(a regular 10-gon's); graded circles need a finer outline: "
                              f"pass delta_l <= {DL_MAX_RATIO * r0:.6g}")
-        check_sigma_range(sigma, dl, r0, f"particles[{k}]")
         c = centroid(P)
         r_max = float(np.max(np.hypot(*(D - c[:, None]))))
         all_rings.append(rings(P, sigma, r_max))

@@ -19,19 +19,22 @@ from numpy.typing import NDArray
 from .cleanup import truncate, wall_nodes
 from .geometry import centroid, clip_convex, edge_distance, inside
 from .graded import (
-    Rings,
     build,
     check_rounds,
     check_sigma,
-    check_sigma_range,
-    default_sigma,
     prepare,
     ring_nodes,
+    rings,
     sizing_of,
 )
 from .pslg import Layout, fixed_point, triangulate
 from .skfem_mesh import Recipe, to_meshtri
 from .uniform import AREA_FACTOR, MIN_ANGLE, split_walls
+
+GROUP_SIGMA = 1.2
+"""Default growth factor of the element size per circle outside a group (the
+paper's value for particle groups; Eq. 4 with ``r0 = radius`` would give
+``1 + h / radius``, close to 1 for large groups)."""
 
 MIN_CROSSING = 60.0
 """Smallest accepted angle (degrees) between the group circle and a wall it crosses."""
@@ -77,9 +80,14 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
         Edge length of the fine region and the transition polygon,
         ``0 < h < radius``; default the particles' mean outline edge length.
     sigma
-        Growth factor of the graded circles; default ``1 + Delta_l / r0``
-        (Eq. 4) with ``r0 = radius`` and ``Delta_l`` the transition polygon's
-        edge length (about ``h``); allowed ``1 < sigma <= 1 + 1.5 Delta_l / r0``.
+        Growth factor of the element size from one graded circle to the next,
+        ``1 < sigma <= 2``; default :data:`GROUP_SIGMA` = 1.2 (the paper's
+        value for groups). The first circle lies ``h`` outside the
+        transition; circle ``i`` is ``h sigma**i`` from the next and carries
+        as many nodes as keep its node spacing equal to that (the node count
+        drops as the circles coarsen). ``sigma = 1 + h / radius`` gives
+        Eq. 4 with ``r0 = radius`` (every circle with the transition's node
+        count).
     center
         ``(x, y)`` centre of the circle, inside the domain or on its outline;
         default the mean of the particle centroids. On a wall the fine
@@ -123,12 +131,8 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
     tri = triangulate(fine, f"q{fixed_point(MIN_ANGLE)}Ya"
                             f"{fixed_point(AREA_FACTOR * np.sqrt(3.0) / 4.0 * h * h)}")
     fixed, fixed_wall, fixed_wall_edge, segs = _fine_nodes(D, T, arc, fine, tri)
-    dl = float(np.mean(np.hypot(*(np.roll(C, -1, axis=1) - C))))
-    check_sigma_range(sigma, dl, radius, "the group circle")
-    s = default_sigma(dl, radius) if sigma is None else sigma
     r_max = float(np.max(np.hypot(*(D - c[:, None]))))
-    n = int(np.ceil(np.log(max(r_max, radius) / radius) / np.log(s) + 1e-9)) + 1
-    ring = Rings(center=c, r0=radius, dl=dl, sigma=s, radii=radius * s ** np.arange(n))
+    ring = rings(C, GROUP_SIGMA if sigma is None else sigma, r_max, center=c)
     sizing = sizing_of([ring])
     free, proj, proj_edge = truncate(D, [T], ring_nodes(C, ring), sizing)
     wall, wall_edge = wall_nodes(D, proj, proj_edge, sizing, fixed_wall, fixed_wall_edge)

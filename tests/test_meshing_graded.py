@@ -68,6 +68,23 @@ def test_custom_sigma_gives_geometric_radii():
     assert r[-2] < 5e-3 <= r[-1]
 
 
+def test_custom_sigma_grows_spacing_and_thins_circles():
+    """sigma != Eq. 4 default: spacing dl sigma**i, node spacing along each circle
+    about equal to the spacing to the next circle."""
+    P = regular(24)
+    ring = graded.rings(P, 1.4, 6e-3)
+    dl = chord(24)
+    r, n = ring.radii, ring.counts
+    np.testing.assert_allclose(np.diff(r), dl * 1.4 ** np.arange(r.size - 1), rtol=1e-12)
+    assert n[0] == 24 and np.all(np.diff(n) <= 0) and n[-1] < 24
+    arc = 2 * np.pi * r[1:] / n[1:]
+    outline_ratio = 2 * np.pi * R0 / 24 / dl          # the outline's own arc over chord
+    np.testing.assert_allclose(arc / (dl * 1.4 ** np.arange(1, r.size)) / outline_ratio,
+                               1.0, atol=0.5 / n[1:].min() + 1e-12)
+    x = graded.ring_nodes(P, ring)
+    assert x.shape[1] == n[1:].sum()
+
+
 def test_every_second_circle_is_staggered_by_half_a_spacing():
     P = regular(24, rot=0.1)
     ring = graded.rings(P, None, 3e-3)
@@ -210,6 +227,7 @@ CASES = {
                             regular(16, 0.4e-3, (2.0e-3, 6e-3), 0.2)], {}),
     "sigma 1.1": (BOX, [regular(24)], {"sigma": 1.1}),
     "sigma 1.35": (BOX, [regular(24)], {"sigma": 1.35}),
+    "sigma 1.6": (BOX, [regular(32)], {"sigma": 1.6}),
     "48 segments": (BOX, [regular(48)], {}),
 }
 

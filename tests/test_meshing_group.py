@@ -84,8 +84,9 @@ def test_hundred_particles_conforming_and_quality(hundred):
         assert mesh.boundaries[f"particle{k}"].size == 12
 
 
-def test_graded_outside_follows_eq4(hundred):
-    """Outside the circle the graded nodes sit on Eq. 4 circles (before relaxation)."""
+def test_graded_outside_grows_by_sigma_per_circle(hundred):
+    """Outside the circle the graded nodes (before relaxation) sit on circles whose
+    spacing starts at the transition edge and grows by sigma = 1.2 per circle."""
     parts, _ = hundred
     mesh = meshing.group_mesh(BOX, parts, relax_rounds=0)
     c = np.mean([p.mean(axis=1) for p in parts], axis=0)
@@ -93,7 +94,9 @@ def test_graded_outside_follows_eq4(hundred):
     radius = max(np.max(np.hypot(*(p - c[:, None]))) for p in parts) + 2 * h
     n = max(16, int(np.ceil(2 * np.pi * radius / h)))
     dl = 2 * radius * np.sin(np.pi / n)
-    radii = graded.ring_radii(radius, 1 + dl / radius, 40e-3)
+    radii = radius + dl * (1.2 ** np.arange(60) - 1.0) / 0.2
+    np.testing.assert_allclose(graded.ring_radii(radius, 1.2, 40e-3, dl),
+                               radii[:graded.ring_radii(radius, 1.2, 40e-3, dl).size], rtol=1e-12)
     g = np.unique(mesh.t[:, mesh.subdomains["graded"]])
     r = np.hypot(*(mesh.p[:, g] - c[:, None]))
     x0, y0, x1, y1 = BOX
@@ -115,13 +118,22 @@ def test_sector_on_the_bottom_wall():
     np.testing.assert_array_equal(mesh.p[1, mesh.facets[:, bottom]], 0.0)
 
 
-def test_single_particle_group_and_sigma():
+@pytest.mark.parametrize("sigma", [None, 1.05, 1.5])
+def test_single_particle_group_and_sigma(sigma):
     P = regular(24, 0.5e-3, (1.5e-3, 5.5e-3))
-    mesh = meshing.group_mesh((0.0, 0.0, 3e-3, 11e-3), [P], radius=0.9e-3)
+    mesh = meshing.group_mesh((0.0, 0.0, 3e-3, 11e-3), [P], radius=0.9e-3, sigma=sigma)
     s = meshing.mesh_stats(mesh)
     assert s.min_angle >= 20.0 and s.max_aspect <= 3.0
-    with pytest.raises(ValueError, match=r"sigma: must be in \(1, "):
-        meshing.group_mesh((0.0, 0.0, 3e-3, 11e-3), [P], radius=0.9e-3, sigma=1.5)
+
+
+def test_faster_growth_means_fewer_graded_nodes(hundred):
+    parts, mesh = hundred
+    slow = meshing.group_mesh(BOX, parts, sigma=1.05)
+    n_slow = np.unique(slow.t[:, slow.subdomains["graded"]]).size
+    n_fast = np.unique(mesh.t[:, mesh.subdomains["graded"]]).size
+    # node count per unit area ~ 1 / spacing^2 with spacing growing (sigma - 1) per
+    # unit radius: four times faster growth must save well over half the nodes
+    assert n_fast < 0.5 * n_slow
 
 
 def crossing_angles(mesh, center, radius, box):
