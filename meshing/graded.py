@@ -12,26 +12,24 @@ and joined by a constrained Delaunay triangulation.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import skfem
 from numpy.typing import NDArray
 
-from .cleanup import Sizing, merge_degenerate, near_particles, truncate, wall_nodes
+from .cleanup import Sizing, truncate, wall_nodes
 from .geometry import (
     as_domain,
     as_particles,
     centroid,
     check_layout,
-    inside,
     outline_lengths,
     positive,
     subdivide,
 )
-from .pslg import Layout, Triangulation
-from .quality import angles, aspect_ratio, edge_lengths
-from .relax import relax
+from .pslg import Layout
+from .repair import build
 from .skfem_mesh import Recipe, to_meshtri
 
 SIGMA_MAX = 1.6
@@ -41,15 +39,6 @@ the quality bounds). A 10-gon's default from Eq. 4 may reach 1.618."""
 
 DL_MAX_RATIO = 2.0 * float(np.sin(np.pi / 10.0))
 """Largest outline edge length over circumradius for graded circles (a 10-gon)."""
-
-SAFE_MIN_ANGLE = 20.0
-"""Guaranteed smallest angle (degrees) of a built mesh."""
-
-SAFE_MAX_ASPECT = 3.0
-"""Guaranteed largest ``R / (2 r)`` of a built mesh."""
-
-REPAIR_ROUNDS = 3
-"""Rounds of node insertion for triangles outside the guaranteed bounds."""
 
 
 @dataclass(frozen=True)
@@ -180,58 +169,6 @@ def prepare(domain: object, particles: object, delta_l: float | None
     else:
         delta_l = positive(delta_l, "delta_l")
     return D, names, [subdivide(P, delta_l) for P in outlines]
-
-
-def build(layout: Layout, sizing: Sizing, keep_out: Sequence[NDArray[np.float64]],
-          relax_rounds: int) -> tuple[Layout, Triangulation]:
-    """Cleanup pipeline: merge degenerate triangles, relax, merge again, repair.
-
-    Repair: a triangle that still violates the guaranteed bounds (angle
-    below :data:`SAFE_MIN_ANGLE` or ``R / (2 r)`` above
-    :data:`SAFE_MAX_ASPECT`) usually has a short frozen edge (a particle or
-    wall segment) and a far apex; a node is inserted at the apex of the
-    equilateral triangle on that edge, then the layout is relaxed once and
-    cleaned again (at most :data:`REPAIR_ROUNDS` times). Well-shaped meshes
-    pass through unchanged.
-    """
-    layout, _ = merge_degenerate(layout, sizing)
-    if relax_rounds:
-        layout = relax(layout, sizing, keep_out, rounds=relax_rounds)
-    layout, tri = merge_degenerate(layout, sizing)
-    for _ in range(REPAIR_ROUNDS):
-        new = repair_nodes(layout, tri, keep_out, sizing)
-        if new.shape[1] == 0:
-            break
-        layout = relax(replace(layout, free=np.hstack([layout.free, new])), sizing, keep_out,
-                       rounds=1)
-        layout, tri = merge_degenerate(layout, sizing)
-    return layout, tri
-
-
-def repair_nodes(layout: Layout, tri: Triangulation, keep_out: Sequence[NDArray[np.float64]],
-                 sizing: Sizing) -> NDArray[np.float64]:
-    """Equilateral apex points on the shortest edge of every out-of-bounds triangle."""
-    p, t = tri.points, tri.t
-    bad = (angles(p, t).min(axis=0) < SAFE_MIN_ANGLE) | (aspect_ratio(p, t) > SAFE_MAX_ASPECT)
-    if not np.any(bad):
-        return np.zeros((2, 0))
-    t = t[:, bad]
-    L = edge_lengths(p, t)
-    k = np.argmin(L, axis=0)
-    j = np.arange(t.shape[1])
-    a, b, c = p[:, t[(k + 1) % 3, j]], p[:, t[(k + 2) % 3, j]], p[:, t[k, j]]
-    m, e = 0.5 * (a + b), b - a
-    n = np.vstack([-e[1], e[0]])
-    n *= np.sign(np.sum(n * (c - m), axis=0))
-    x = m + 0.5 * np.sqrt(3.0) * n
-    h = 0.25 * np.hypot(*e)
-    ok = inside(layout.domain, x, 0.0)
-    ok[ok] &= ~near_particles(list(keep_out), x[:, ok], h[ok])
-    x = x[:, ok]
-    if x.shape[1] > 1:   # one node per cluster of nearby apexes
-        _, first = np.unique(np.round(x / (0.5 * float(h.min()))), axis=1, return_index=True)
-        x = x[:, np.sort(first)]
-    return x
 
 
 def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),

@@ -19,7 +19,6 @@ from numpy.typing import NDArray
 from .cleanup import truncate, wall_nodes
 from .geometry import centroid, clip_convex, edge_distance, inside
 from .graded import (
-    build,
     check_rounds,
     check_sigma,
     prepare,
@@ -28,6 +27,7 @@ from .graded import (
     sizing_of,
 )
 from .pslg import Layout, fixed_point, triangulate
+from .repair import build
 from .skfem_mesh import Recipe, to_meshtri
 from .uniform import AREA_FACTOR, MIN_ANGLE, split_walls
 

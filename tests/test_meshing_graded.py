@@ -243,15 +243,16 @@ def test_quality_bounds(name):
 
 @settings(max_examples=30, deadline=None)
 @given(n=st.integers(10, 40), r=st.floats(0.2e-3, 0.6e-3), u=st.floats(0.0, 1.0),
-       v=st.floats(0.0, 1.0), rot=st.floats(0.0, 6.3), g=st.floats(1.0, 3.0))
-def test_quality_bounds_random_placement(n, r, u, v, rot, g):
+       v=st.floats(0.0, 1.0), rot=st.floats(0.0, 6.3), g=st.floats(1.0, 3.0),
+       sigma=st.one_of(st.none(), st.floats(1.05, 1.6)))
+def test_quality_bounds_random_placement(n, r, u, v, rot, g, sigma):
     """Bounds are guaranteed for gaps to the walls of at least one outline edge."""
     lo = r + g * chord(n, r)
     c = (lo + u * max(3e-3 - 2 * lo, 0.0), lo + v * (11e-3 - 2 * lo))
     P = regular(n, r, c, rot)
     if not np.all(geometry.inside(geometry.as_domain(BOX)[0], P)):
         return
-    assert_quality(meshing.graded_mesh(BOX, [P]), [P])
+    assert_quality(meshing.graded_mesh(BOX, [P], sigma=sigma), [P])
 
 
 @pytest.mark.parametrize("n", [10, 24])
