@@ -1,0 +1,23 @@
+"""skfem-granular: polygonal DEM particles in an incompressible fluid on graded meshes.
+
+The fluid half (Taylor-Hood P2/P1 on scikit-fem) lives in
+:mod:`skfem_granular.fluid`, the discrete element method in
+:mod:`skfem_granular.dem`; mesh generation is the separate top-level package
+:mod:`meshing`.
+"""
+
+from .fluid import (
+    ConvergenceError,
+    Flow,
+    Fluid,
+    RigidMotion,
+    SolveReport,
+    TaylorHood,
+    solve_steady,
+)
+from .fluid.unsteady import BDF2Integrator, evolve
+
+__version__ = "0.1.0"
+
+__all__ = ["BDF2Integrator", "ConvergenceError", "Flow", "Fluid", "RigidMotion", "SolveReport",
+           "TaylorHood", "evolve", "solve_steady"]

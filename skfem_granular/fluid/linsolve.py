@@ -1,0 +1,222 @@
+"""Linear solvers for the saddle-point systems, behind one small interface.
+
+A solver is built for one matrix (``factorize``) and applied many times
+(``solve``), as pyamg's solver objects are. All of them scale the pressure
+unknowns first: unscaled, a P2/P1 system in SI units has a condition number
+of ~1e12 and a small Krylov residual can hide a badly wrong pressure.
+
+- :class:`SuperLUSolver`: sparse LU (scipy), ordering and options measured
+  to fill least on these systems (DESIGN.md, Measured facts).
+- :class:`PardisoSolver`: Intel MKL PARDISO through ``pypardiso`` (optional
+  extra ``skfem-granular[pardiso]``).
+- :class:`KrylovSolver`: FGMRES with a block-triangular preconditioner: pyamg
+  smoothed aggregation on the velocity block and a Cahouet-Chabard pressure
+  Schur complement approximation ``eta Mp^-1 + a0 rho Lp^-1``.
+
+:func:`make_solver` picks one by size (``"auto"``) or by name.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+#: Above this many unknowns ``"auto"`` switches from SuperLU to Krylov.
+AUTO_KRYLOV_SIZE = 250_000
+
+
+@dataclass
+class SolverStats:
+    """Counters and wall times of one solver object."""
+
+    name: str
+    factorizations: int = 0
+    solves: int = 0
+    iterations: list = field(default_factory=list)
+    time_factor: float = 0.0
+    time_solve: float = 0.0
+
+    def as_dict(self) -> dict:
+        """Plain dictionary (JSON-friendly)."""
+        return {"name": self.name, "factorizations": self.factorizations,
+                "solves": self.solves, "krylov_iterations": list(self.iterations),
+                "time_factor": self.time_factor, "time_solve": self.time_solve}
+
+
+class SaddlePointSolver:
+    """Base class: pressure scaling and bookkeeping.
+
+    Parameters
+    ----------
+    nu : int
+        Number of (free) velocity unknowns; the rest are pressures.
+    """
+
+    name = "base"
+
+    def __init__(self):
+        self.stats = SolverStats(self.name)
+        self._scale = None
+
+    def _scaled(self, A: sp.spmatrix, nu: int) -> sp.csc_matrix:
+        A = sp.csr_matrix(A)
+        diag = np.abs(A.diagonal()[:nu])
+        Bt = A[:nu, nu:]
+        bmax = abs(Bt).max() if Bt.nnz else 1.0
+        s = (np.median(diag[diag > 0]) / bmax) if np.any(diag > 0) and bmax > 0 else 1.0
+        self._scale = np.ones(A.shape[0])
+        self._scale[nu:] = s
+        D = sp.diags(self._scale)
+        return (D @ A @ D).tocsc()
+
+    def factorize(self, A: sp.spmatrix, nu: int, **blocks) -> SaddlePointSolver:
+        """Prepare to solve with ``A`` (velocity unknowns first, ``nu`` of them)."""
+        t0 = time.perf_counter()
+        self.nu = nu
+        self._factorize(self._scaled(A, nu), **blocks)
+        self.stats.factorizations += 1
+        self.stats.time_factor += time.perf_counter() - t0
+        return self
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """Solve ``A x = b`` with the matrix of the last :meth:`factorize`."""
+        t0 = time.perf_counter()
+        x = self._scale * self._solve(self._scale * b)
+        self.stats.solves += 1
+        self.stats.time_solve += time.perf_counter() - t0
+        return x
+
+    def _factorize(self, A, **blocks):
+        raise NotImplementedError
+
+    def _solve(self, b):
+        raise NotImplementedError
+
+
+class SuperLUSolver(SaddlePointSolver):
+    """Sparse LU factorisation by SuperLU (scipy), reused across solves."""
+
+    name = "superlu"
+
+    def _factorize(self, A, **blocks):
+        self._lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
+                             options=dict(SymmetricMode=True))
+
+    def _solve(self, b):
+        return self._lu.solve(b)
+
+
+class PardisoSolver(SaddlePointSolver):
+    """MKL PARDISO through the optional ``pypardiso`` package."""
+
+    name = "pardiso"
+
+    def __init__(self):
+        try:
+            import pypardiso
+        except ImportError as exc:
+            raise ValueError("solver = 'pardiso': needs the optional package pypardiso "
+                             "(pip install 'skfem-granular[pardiso]')") from exc
+        super().__init__()
+        self._solver = pypardiso.PyPardisoSolver()
+
+    def _factorize(self, A, **blocks):
+        self._A = sp.csr_matrix(A)
+        self._solver.factorize(self._A)
+
+    def _solve(self, b):
+        return self._solver.solve(self._A, np.ascontiguousarray(b, dtype=np.float64))
+
+
+class KrylovSolver(SaddlePointSolver):
+    """FGMRES with a pyamg block-triangular preconditioner.
+
+    Parameters
+    ----------
+    rtol : float
+        Relative residual tolerance of FGMRES (on the scaled system).
+    maxiter : int
+        Iteration limit; exceeding it raises :class:`ConvergenceError`.
+    """
+
+    name = "krylov"
+
+    def __init__(self, rtol: float = 1e-10, maxiter: int = 300):
+        super().__init__()
+        self.rtol = rtol
+        self.maxiter = maxiter
+
+    def _factorize(self, A, Mp=None, Lp=None, eta=1.0, a0rho=0.0, **blocks):
+        import pyamg
+
+        nu = self.nu
+        s = self._scale[-1] if self._scale.size > nu else 1.0
+        self._A = A.tocsr()
+        Auu = self._A[:nu, :nu]
+        self._Bt = self._A[:nu, nu:]
+        self._ml_u = pyamg.smoothed_aggregation_solver(Auu.tocsr(), symmetry="nonsymmetric")
+        npr = A.shape[0] - nu
+        if Mp is None:
+            Mp = sp.identity(npr)
+        # Schur complement of the scaled system: s^2 * (eta Mp^-1 + a0 rho Lp^-1)^-1 (negated)
+        self._mp_diag = np.asarray(Mp.sum(axis=1)).ravel()
+        self._eta, self._a0rho, self._s = eta, a0rho, s
+        self._ml_p = None
+        if Lp is not None and a0rho > 0:
+            Lreg = (Lp + 1e-8 * abs(Lp).max() * sp.identity(npr)).tocsr()
+            self._ml_p = pyamg.smoothed_aggregation_solver(Lreg)
+
+    def _precondition(self, r):
+        nu = self.nu
+        ru, rp = r[:nu], r[nu:]
+        zp = self._eta * rp / self._mp_diag
+        if self._ml_p is not None:
+            zp = zp + self._a0rho * self._ml_p.solve(rp, tol=1e-3, maxiter=2, cycle="V")
+        zp = -zp / self._s**2
+        zu = self._ml_u.solve(ru - self._Bt @ zp, tol=1e-2, maxiter=1, cycle="V")
+        return np.concatenate([zu, zp])
+
+    def _solve(self, b):
+        from pyamg.krylov import fgmres
+
+        from .errors import ConvergenceError
+
+        n = b.size
+        M = spla.LinearOperator((n, n), matvec=self._precondition, dtype=float)
+        residuals = []
+        x, info = fgmres(self._A, b, M=M, tol=self.rtol, maxiter=self.maxiter, restart=None,
+                         residuals=residuals)
+        self.stats.iterations.append(len(residuals) - 1)
+        if info != 0:
+            rel = residuals[-1] / max(residuals[0], 1e-300)
+            raise ConvergenceError(f"Krylov solver: FGMRES stopped after {len(residuals) - 1} "
+                                   f"iterations at relative residual {rel:.2e} > rtol "
+                                   f"{self.rtol:.0e}; use solver='superlu' or a finer tolerance")
+        return x
+
+
+SOLVERS = {"superlu": SuperLUSolver, "pardiso": PardisoSolver, "krylov": KrylovSolver}
+
+
+def make_solver(solver: str | SaddlePointSolver = "auto", size: int = 0) -> SaddlePointSolver:
+    """Return a new solver object.
+
+    Parameters
+    ----------
+    solver : {"auto", "superlu", "pardiso", "krylov"} or SaddlePointSolver
+        ``"auto"`` uses SuperLU up to :data:`AUTO_KRYLOV_SIZE` unknowns and
+        Krylov above. An existing solver object is returned as it is.
+    size : int
+        Number of unknowns, for ``"auto"``.
+    """
+    if isinstance(solver, SaddlePointSolver):
+        return solver
+    if solver == "auto":
+        solver = "krylov" if size > AUTO_KRYLOV_SIZE else "superlu"
+    if solver not in SOLVERS:
+        raise ValueError(f"solver = {solver!r}: must be one of 'auto', {', '.join(map(repr, SOLVERS))}")
+    return SOLVERS[solver]()

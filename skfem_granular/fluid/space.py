@@ -1,0 +1,183 @@
+"""The Taylor-Hood P2/P1 discretisation of one mesh.
+
+:class:`TaylorHood` owns the scikit-fem bases, the constant blocks (``M``,
+``K`` in both viscous forms, ``B``), the convection kernel and the DOF maps
+of the named boundaries. It is built once per mesh and shared by the steady
+and unsteady solvers and by the force evaluation.
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import Basis, ElementTriP1, ElementTriP2, ElementVector, FacetBasis, MeshTri, asm
+
+from . import forms
+from .convection import ConvectionKernel
+
+#: Quadrature order shared by all bases: the convection integrand on affine
+#: P2 has degree 5, the mass matrix degree 4.
+INTORDER = 5
+
+
+class TaylorHood:
+    """P2 velocity / P1 pressure spaces and the constant blocks on ``mesh``.
+
+    Parameters
+    ----------
+    mesh : skfem.MeshTri
+        Triangle mesh with named boundaries (``mesh.boundaries``).
+    intorder : int, optional
+        Quadrature order used for every basis.
+
+    Attributes
+    ----------
+    ub, pb, sb : skfem.Basis
+        Vector P2, P1 pressure and scalar P2 bases (same quadrature).
+    nu, np_ : int
+        Number of velocity and pressure DOFs; the unknown vector is
+        ``x = [u, p]`` of length ``nu + np_``.
+    """
+
+    def __init__(self, mesh: MeshTri, intorder: int = INTORDER):
+        if not isinstance(mesh, MeshTri):
+            raise ValueError(f"mesh: a skfem.MeshTri is required, got {type(mesh).__name__}")
+        self.mesh = mesh
+        self.intorder = intorder
+        self.ub = Basis(mesh, ElementVector(ElementTriP2()), intorder=intorder)
+        self.pb = self.ub.with_element(ElementTriP1())
+        self.sb = self.ub.with_element(ElementTriP2())
+        self.nu = self.ub.N
+        self.np_ = self.pb.N
+        self.N = self.nu + self.np_
+
+    # constant blocks, assembled on first use ------------------------------
+    @cached_property
+    def M(self) -> sp.csr_matrix:
+        """Velocity mass matrix ``(u, v)``."""
+        return asm(forms.vector_mass, self.ub).tocsr()
+
+    @cached_property
+    def K_symmetric(self) -> sp.csr_matrix:
+        """``2 (eps(u), eps(v))``; multiply by the viscosity."""
+        return asm(forms.viscous_symmetric, self.ub).tocsr()
+
+    @cached_property
+    def K_laplace(self) -> sp.csr_matrix:
+        """``(grad u, grad v)``; multiply by the viscosity."""
+        return asm(forms.viscous_laplace, self.ub).tocsr()
+
+    @cached_property
+    def B(self) -> sp.csr_matrix:
+        """Divergence block ``-(q, div u)``, shape ``(np_, nu)``."""
+        return asm(forms.divergence, self.ub, self.pb).tocsr()
+
+    @cached_property
+    def Mp(self) -> sp.csr_matrix:
+        """Pressure mass matrix."""
+        return asm(forms.pressure_mass, self.pb).tocsr()
+
+    @cached_property
+    def Lp(self) -> sp.csr_matrix:
+        """Pressure Laplacian (for the Cahouet-Chabard preconditioner)."""
+        return asm(forms.pressure_laplace, self.pb).tocsr()
+
+    @cached_property
+    def convection(self) -> ConvectionKernel:
+        """Fast convection evaluation on this mesh."""
+        return ConvectionKernel(self.sb)
+
+    def K(self, viscous: str) -> sp.csr_matrix:
+        """Unit-viscosity viscous block of the given form (``"symmetric"``/``"laplace"``)."""
+        if viscous == "symmetric":
+            return self.K_symmetric
+        if viscous == "laplace":
+            return self.K_laplace
+        raise ValueError(f"viscous = {viscous!r}: must be 'symmetric' or 'laplace'")
+
+    # DOF maps --------------------------------------------------------------
+    def boundary_names(self) -> list[str]:
+        """Names of the mesh's named boundaries."""
+        return list((self.mesh.boundaries or {}).keys())
+
+    def check_boundary(self, name: str, field: str = "velocity") -> None:
+        """Raise a clear error when ``name`` is not a boundary of the mesh."""
+        names = self.boundary_names()
+        if name not in names:
+            raise ValueError(f"{field}[{name!r}]: no such boundary; the mesh has {names}")
+
+    def boundary_dofs(self, name: str) -> np.ndarray:
+        """Velocity DOFs (both components) on boundary ``name``, sorted."""
+        self.check_boundary(name, "boundary")
+        return np.sort(self.ub.get_dofs(self.mesh.boundaries[name]).all())
+
+    def pressure_boundary_dofs(self, name: str) -> np.ndarray:
+        """Pressure DOFs on boundary ``name``."""
+        return np.sort(self.pb.get_dofs(self.mesh.boundaries[name]).all())
+
+    @cached_property
+    def all_boundary_dofs(self) -> np.ndarray:
+        """Velocity DOFs on the whole boundary of the mesh."""
+        return np.sort(self.ub.get_dofs(self.mesh.boundary_facets()).all())
+
+    @property
+    def velocity_doflocs(self) -> np.ndarray:
+        """Coordinates ``(2, nu)`` of each velocity DOF."""
+        return self.ub.doflocs
+
+    @cached_property
+    def component(self) -> np.ndarray:
+        """Component (0 = x, 1 = y) of each velocity DOF."""
+        comp = np.empty(self.nu, dtype=np.int8)
+        for c, idx in enumerate(self.ub.split_indices()):
+            comp[idx] = c
+        return comp
+
+    def facet_basis(self, name: str, element: str = "velocity") -> FacetBasis:
+        """A facet basis on boundary ``name`` (velocity or pressure element)."""
+        self.check_boundary(name, "boundary")
+        elem = self.ub.elem if element == "velocity" else self.pb.elem
+        return FacetBasis(self.mesh, elem, facets=self.mesh.boundaries[name],
+                          intorder=self.intorder)
+
+    def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Split ``x = [u, p]`` into its velocity and pressure parts."""
+        return x[: self.nu], x[self.nu :]
+
+    # field conversions -----------------------------------------------------
+    @cached_property
+    def p1_to_p2(self) -> sp.csr_matrix:
+        """Matrix that evaluates a P1 field at the scalar P2 nodes."""
+        from .points import evaluation_matrix
+
+        ref = np.array([[0.0, 1.0, 0.0, 0.5, 0.5, 0.0],
+                        [0.0, 0.0, 1.0, 0.0, 0.5, 0.5]])
+        edofs = self.sb.element_dofs  # (6, nel)
+        nodes, first = np.unique(edofs.ravel(), return_index=True)
+        local, cells = np.unravel_index(first, edofs.shape)
+        E = evaluation_matrix(self.pb, cells, ref[:, local])
+        out = sp.csr_matrix((self.sb.N, self.np_))
+        out = E[np.argsort(nodes)] if nodes.size == self.sb.N else out
+        return sp.csr_matrix(out)
+
+    @cached_property
+    def _scalar_mass_lu(self):
+        import scipy.sparse.linalg as spla
+
+        from .forms import pressure_mass
+
+        return spla.splu(asm(pressure_mass, self.sb).tocsc())
+
+    def vorticity(self, u: np.ndarray) -> np.ndarray:
+        """L2 projection of ``dv/dx - du/dy`` onto the scalar P2 space."""
+        from skfem import LinearForm
+
+        @LinearForm
+        def curl_form(v, w):
+            G = w["u"].grad
+            return (G[1, 0] - G[0, 1]) * v
+
+        rhs = asm(curl_form, self.sb, u=self.ub.interpolate(u))
+        return self._scalar_mass_lu.solve(rhs)

@@ -1,0 +1,135 @@
+"""Steady Stokes and Navier-Stokes solves."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .boundary import DirichletData
+from .errors import ConvergenceError
+from .flow import Flow, SolveReport
+from .linsolve import make_solver
+from .operator import NavierStokesOperator
+from .properties import Fluid
+from .space import TaylorHood
+
+
+def as_space(mesh_or_space) -> TaylorHood:
+    """Return a :class:`TaylorHood` for a mesh (or the space itself)."""
+    return mesh_or_space if isinstance(mesh_or_space, TaylorHood) else TaylorHood(mesh_or_space)
+
+
+def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *,
+                 body_force=None, viscous: str = "auto", solver="auto", tol: float = 1e-10,
+                 maxiter: int = 25, initial: Flow | np.ndarray | None = None) -> Flow:
+    """Solve the steady Stokes or Navier-Stokes equations.
+
+    Parameters
+    ----------
+    mesh : skfem.MeshTri or TaylorHood
+        Mesh with named boundaries (or a prebuilt discretisation to reuse).
+    fluid : Fluid
+        Density and viscosity.
+    velocity : dict
+        ``{boundary name: (u, v) | f(x, y) | RigidMotion}``; boundaries left
+        out are "do-nothing" outflow boundaries.
+    convection : bool
+        ``False``: Stokes (one linear solve). ``True``: Navier-Stokes by
+        Newton's method started from the Stokes solution (or ``initial``).
+    body_force : None, (2,) or callable, optional
+        Force density in N/m^3.
+    viscous : {"auto", "symmetric", "laplace"}
+        Viscous form; see :class:`NavierStokesOperator`.
+    solver : str or SaddlePointSolver
+        Linear solver; see :func:`make_solver`.
+    tol : float
+        Newton stops when the residual of the free DOFs has fallen by
+        ``tol`` relative to the Stokes right-hand side, or the update is
+        below ``tol`` relative to the solution.
+    maxiter : int
+        Newton iteration limit.
+    initial : Flow or ndarray, optional
+        Initial guess for Newton.
+
+    Returns
+    -------
+    Flow
+        With ``flow.report``: iterations, relative residual history, solver
+        statistics and wall times.
+
+    Raises
+    ------
+    ConvergenceError
+        When Newton does not converge within ``maxiter`` iterations.
+    """
+    t_start = time.perf_counter()
+    space = as_space(mesh)
+    op = NavierStokesOperator(space, fluid, DirichletData(space, velocity), convection=convection,
+                              viscous=viscous, body_force=body_force)
+    times = {"setup": time.perf_counter() - t_start, "assembly": 0.0, "solve": 0.0}
+    lin = make_solver(solver, op.free.size)
+    free = op.free
+
+    def linear_solve(J, r):
+        t0 = time.perf_counter()
+        Jr = op.reduced(J)
+        times["assembly"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        lin.factorize(Jr, op.nu_free, **(op.solver_blocks() if lin.name == "krylov" else {}))
+        dx = lin.solve(-r[free])
+        times["solve"] += time.perf_counter() - t0
+        return dx
+
+    x = np.zeros(space.N)
+    if initial is not None:
+        x[:] = initial.x if isinstance(initial, Flow) else np.asarray(initial, dtype=float)
+    op.apply_dirichlet(x)
+    report = SolveReport()
+    # reference size: the residual of the zero-interior state with boundary data
+    r = op.residual(x)
+    ref = max(np.linalg.norm(r[free]), 1e-300)
+    if not convection:
+        t0 = time.perf_counter()
+        J = op.jacobian(x)
+        times["assembly"] += time.perf_counter() - t0
+        x[free] += linear_solve(J, r)
+        r = op.residual(x)
+        report.iterations = 1
+        report.residuals.append(float(np.linalg.norm(r[free]) / ref))
+    else:
+        converged = False
+        for it in range(1, maxiter + 1):
+            t0 = time.perf_counter()
+            # a Stokes matrix for the first step from a zero interior, Newton after
+            J = (op.jacobian(x) if (it > 1 or initial is not None)
+                 else op.matrix(op.velocity_block()))
+            times["assembly"] += time.perf_counter() - t0
+            dx = linear_solve(J, r)
+            x[free] += dx
+            t0 = time.perf_counter()
+            r = op.residual(x)
+            times["assembly"] += time.perf_counter() - t0
+            rel = float(np.linalg.norm(r[free]) / ref)
+            report.residuals.append(rel)
+            step = np.linalg.norm(dx) / max(np.linalg.norm(x[free]), 1e-300)
+            if not np.isfinite(rel):
+                break
+            if rel <= tol or step <= tol:
+                converged = True
+                break
+        report.iterations = it
+        if not converged:
+            raise ConvergenceError(
+                f"solve_steady: Newton did not converge in {it} iterations (relative residual "
+                f"{report.residuals[-1]:.2e} > tol {tol:.0e}); the Reynolds number may be too high "
+                f"for this mesh: try continuation (initial=a flow at lower speed) or maxiter")
+    op.normalize_pressure(x)
+    report.solver = lin.stats.as_dict()
+    times["total"] = time.perf_counter() - t_start
+    report.wall_time = times
+
+    def residual_u(xx, op=op):
+        return op.residual(xx)[: space.nu]
+
+    return Flow(op, x, residual_u, report=report)

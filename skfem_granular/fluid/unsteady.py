@@ -1,0 +1,349 @@
+"""Unsteady Stokes / Navier-Stokes by variable-step BDF2 (the paper's Eq. 1).
+
+:class:`BDF2Integrator` advances ``x = [u, p]`` one step at a time:
+
+1. an explicit second-order predictor (AB2 on the BDF2 derivatives, see
+   :mod:`skfem_granular.timestep`) gives the initial guess;
+2. the corrector ``[a0 rho M + eta K + rho N(u)  B^T; B  0] [u; p] =
+   [-rho M (a1 u_n + a2 u_{n-1}) + f; 0]`` is solved by a fixed-operator
+   ("chord") Newton iteration with the factorised BDF2-Stokes operator,
+   which is reused while ``dt`` and the step ratio do not change; when the
+   chord iteration contracts slowly (convection-dominated steps) the same
+   factorisation preconditions GMRES on the exact Newton Jacobian, applied
+   matrix-free;
+3. Milne's device gives the local error from the predictor-corrector
+   difference, for adaptive steps.
+
+Without convection (unsteady Stokes) each step is one back-substitution.
+The first step is backward Euler. :func:`evolve` wraps it as a generator
+yielding ``(t, flow)`` as scikit-fem's ex19 does.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from .. import timestep as ts
+from .._validate import positive
+from .boundary import DirichletData
+from .errors import ConvergenceError
+from .flow import Flow, SolveReport
+from .linsolve import make_solver
+from .operator import NavierStokesOperator
+from .steady import as_space
+
+
+@dataclass
+class StepInfo:
+    """What one accepted step did."""
+
+    t: float
+    dt: float
+    iterations: int
+    error: float | None
+    rejected: int = 0
+    gmres: bool = False
+    wall_time: dict = field(default_factory=dict)
+
+
+class BDF2Integrator:
+    """Variable-step BDF2 integrator of the Stokes/Navier-Stokes equations on a fixed mesh.
+
+    Parameters
+    ----------
+    mesh : skfem.MeshTri or TaylorHood
+        Mesh with named boundaries.
+    fluid : Fluid
+        Density and viscosity.
+    velocity : dict
+        Boundary data ``{name: (u, v) | f(x, y) | f(x, y, t) | RigidMotion}``.
+    convection : bool
+        Navier-Stokes (``True``) or unsteady Stokes (``False``).
+    u0 : ndarray, Flow or callable, optional
+        Initial velocity (DOF vector, a flow on the same mesh, or ``f(x, y)``).
+        Default: fluid at rest.
+    t0 : float
+        Initial time.
+    body_force, viscous, solver
+        As in :func:`solve_steady`.
+    newton_tol : float
+        Corrector iterations stop when the velocity update is below
+        ``newton_tol`` relative to the velocity scale.
+    max_iterations : int
+        Corrector iteration limit per step; exceeding it rejects the step.
+    velocity_scale : float, optional
+        Velocity used to scale errors; default: the largest boundary speed
+        (at least 1e-12).
+    scheme : {"bdf2", "euler"}
+        Variable-step BDF2 (backward Euler on the first step only) or
+        backward Euler throughout (first order, for comparison).
+    """
+
+    def __init__(self, mesh, fluid, velocity: dict, *, convection: bool = True, u0=None,
+                 t0: float = 0.0, body_force=None, viscous: str = "auto", solver="auto",
+                 newton_tol: float = 1e-8, max_iterations: int = 12,
+                 velocity_scale: float | None = None, scheme: str = "bdf2"):
+        if scheme not in ("bdf2", "euler"):
+            raise ValueError(f"scheme = {scheme!r}: must be 'bdf2' or 'euler'")
+        self.scheme = scheme
+        self.space = as_space(mesh)
+        self.op = NavierStokesOperator(self.space, fluid, DirichletData(self.space, velocity),
+                                       convection=convection, viscous=viscous,
+                                       body_force=body_force)
+        self.fluid = fluid
+        self.newton_tol = positive("newton_tol", newton_tol)
+        self.max_iterations = int(max_iterations)
+        self.solver = make_solver(solver, self.op.free.size)
+        self._a0 = None
+        self.t = float(t0)
+        nu = self.space.nu
+        self.x = np.zeros(self.space.N)
+        if u0 is not None:
+            self.x[:nu] = self._initial_velocity(u0)
+        self.op.apply_dirichlet(self.x, self.t)
+        self.u_prev = None        # u_{n-1}
+        self.du = np.zeros(nu)    # u'_n
+        self.du_prev = None       # u'_{n-1}
+        self.dt_prev = None
+        if velocity_scale is None:
+            vals = self.op.dirichlet.values(self.t)
+            velocity_scale = float(np.abs(vals).max()) if vals.size else 0.0
+        self.velocity_scale = max(float(velocity_scale), 1e-12)
+        self.timings = {"assembly": 0.0, "factorization": 0.0, "solve": 0.0}
+
+    def _initial_velocity(self, u0) -> np.ndarray:
+        sp_ = self.space
+        if isinstance(u0, Flow):
+            return u0.u.copy()
+        if callable(u0):
+            loc = sp_.velocity_doflocs
+            ux, uy = u0(loc[0], loc[1])
+            val = np.where(sp_.component == 0, ux, uy).astype(float)
+        else:
+            val = np.asarray(u0, dtype=float)
+        if val.shape != (sp_.nu,) or not np.all(np.isfinite(val)):
+            raise ValueError(f"u0: must be {sp_.nu} finite velocity DOFs, a Flow or f(x, y)")
+        return val
+
+    # linear algebra ---------------------------------------------------------------
+    def _operator(self, a0: float):
+        """Factorise the BDF2-Stokes operator for ``a0`` (cached)."""
+        if self._a0 != a0:
+            t0 = time.perf_counter()
+            self._A_uu = self.op.velocity_block(a0)
+            J = self.op.reduced(self.op.matrix(self._A_uu))
+            t1 = time.perf_counter()
+            blocks = self.op.solver_blocks(a0) if self.solver.name == "krylov" else {}
+            self.solver.factorize(J, self.op.nu_free, **blocks)
+            self.timings["assembly"] += t1 - t0
+            self.timings["factorization"] += time.perf_counter() - t1
+            self._a0 = a0
+        return self._A_uu
+
+    def _gmres_correction(self, x, r_free, a0):
+        """Solve the exact Newton system matrix-free, preconditioned by the chord operator."""
+        op, sp_ = self.op, self.space
+        free = op.free
+        rho = self.fluid.density
+        u = x[: sp_.nu]
+        A_uu = self._A_uu
+
+        def matvec(v):
+            full = np.zeros(sp_.N)
+            full[free] = v
+            du = full[: sp_.nu]
+            out = op.residual(full, rhs_u=None, A_uu=A_uu) + np.concatenate(
+                [op.f, np.zeros(sp_.np_)])
+            if op.convection:  # replace N(du) du by the linearisation at u
+                out[: sp_.nu] += rho * (sp_.convection.jacobian_action(u, du)
+                                        - sp_.convection.residual(du))
+            return out[free]
+
+        n = free.size
+        J = spla.LinearOperator((n, n), matvec=matvec, dtype=float)
+        P = spla.LinearOperator((n, n), matvec=self.solver.solve, dtype=float)
+        dx, info = spla.gmres(J, -r_free, M=P, rtol=1e-10, atol=0.0, restart=30, maxiter=10)
+        return dx, info == 0
+
+    def _coefficients(self, dt):
+        return ts.bdf2_coefficients(dt, None if self.scheme == "euler" else self.dt_prev)
+
+    # one step -----------------------------------------------------------------------
+    def try_step(self, dt: float):
+        """Compute the corrector for a step of size ``dt`` without committing it.
+
+        Returns
+        -------
+        x_new : ndarray
+        iterations : int
+        err : float or None
+            Scaled local error estimate (``None`` on the first step).
+        used_gmres : bool
+
+        Raises
+        ------
+        ConvergenceError
+            When the corrector does not converge.
+        """
+        op, sp_ = self.op, self.space
+        nu = sp_.nu
+        rho = self.fluid.density
+        a0, a1, a2 = self._coefficients(dt)
+        u_n = self.x[:nu]
+        hist = a1 * u_n if self.u_prev is None else a1 * u_n + a2 * self.u_prev
+        t0 = time.perf_counter()
+        rhs_u = -rho * (sp_.M @ hist)
+        A_uu = self._operator(a0)
+        u_pred = ts.predict(u_n, self.du, self.du_prev, dt, self.dt_prev)
+        x = self.x.copy()
+        x[:nu] = u_pred
+        op.apply_dirichlet(x, self.t + dt)
+        free = op.free
+        scale = max(float(np.abs(u_n).max()), self.velocity_scale)
+        used_gmres = False
+        prev_norm = None
+        self.timings["assembly"] += time.perf_counter() - t0
+        for it in range(1, self.max_iterations + 1):
+            t0 = time.perf_counter()
+            r = op.residual(x, rhs_u=rhs_u, A_uu=A_uu)
+            t1 = time.perf_counter()
+            if used_gmres:
+                dx, ok = self._gmres_correction(x, r[free], a0)
+            else:
+                dx = -self.solver.solve(r[free])
+            x[free] += dx
+            self.timings["assembly"] += t1 - t0
+            self.timings["solve"] += time.perf_counter() - t1
+            if not op.convection:
+                break
+            dnorm = float(np.abs(dx[: op.nu_free]).max())
+            if not math.isfinite(dnorm):
+                raise ConvergenceError(f"BDF2 step dt={dt:.3e}: corrector produced NaN")
+            if dnorm <= self.newton_tol * scale:
+                break
+            if prev_norm is not None and not used_gmres:
+                # chord iterations contract linearly: switch to Newton-GMRES when
+                # more than three further chord iterations would be needed
+                rate = dnorm / prev_norm
+                target = self.newton_tol * scale / dnorm
+                if rate >= 1.0 or math.log(target) / math.log(max(rate, 1e-300)) > 3.0:
+                    used_gmres = True
+            prev_norm = dnorm
+        else:
+            raise ConvergenceError(
+                f"BDF2 step at t={self.t:.6g}, dt={dt:.3e}: corrector did not converge in "
+                f"{self.max_iterations} iterations (update {dnorm:.2e} > {self.newton_tol:.0e} "
+                f"x velocity scale {scale:.2e})")
+        self._last_rhs = rhs_u
+        err = None
+        if self.dt_prev is not None and self.scheme == "bdf2":
+            est = ts.milne_factor(dt, self.dt_prev) * (x[:nu] - u_pred)
+            err = float(np.abs(est).max()) / max(float(np.abs(x[:nu]).max()), self.velocity_scale)
+        return x, it, err, used_gmres
+
+    def commit(self, x_new: np.ndarray, dt: float) -> None:
+        """Make ``x_new`` the state at ``t + dt`` and shift the histories."""
+        nu = self.space.nu
+        a0, a1, a2 = self._coefficients(dt)
+        u_n = self.x[:nu]
+        du_new = a0 * x_new[:nu] + a1 * u_n + (a2 * self.u_prev if self.u_prev is not None else 0.0)
+        self.u_prev = u_n.copy()
+        self.du_prev, self.du = self.du, du_new
+        self.dt_prev = dt
+        self.x = x_new
+        self.t += dt
+
+    def flow(self) -> Flow:
+        """The current state as a :class:`Flow` (forces include the fluid inertia)."""
+        op = self.op
+        x = op.normalize_pressure(self.x.copy())
+        A_uu, rhs = self._A_uu, self._last_rhs
+
+        def residual_u(xx):
+            return op.residual(xx, rhs_u=rhs, A_uu=A_uu)[: self.space.nu]
+
+        rep = SolveReport(solver=self.solver.stats.as_dict(), wall_time=dict(self.timings))
+        return Flow(op, x, residual_u, t=self.t, report=rep)
+
+
+def evolve(mesh, fluid, velocity: dict, *, dt: float, t_end: float, adaptive: bool = False,
+           tol: float = 1e-3, max_ratio: float = 2.0, dt_min: float | None = None,
+           dt_max: float = math.inf, max_rejections: int = 10, **options):
+    """Integrate in time; a generator yielding ``(t, flow)`` after every accepted step.
+
+    Parameters
+    ----------
+    mesh, fluid, velocity
+        As in :class:`BDF2Integrator`.
+    dt : float
+        (Initial) step size, > 0.
+    t_end : float
+        End time, > the initial time.
+    adaptive : bool
+        Choose steps from the local error estimate (accept/reject).
+    tol : float
+        Local error tolerance relative to the velocity scale (adaptive).
+    max_ratio : float
+        Growth cap of consecutive steps, < 1 + sqrt(2).
+    dt_min, dt_max : float
+        Step bounds (``dt_min`` default ``1e-6 dt``).
+    max_rejections : int
+        Rejected attempts allowed in a row before giving up.
+    **options
+        Passed to :class:`BDF2Integrator` (``convection``, ``u0``, ``t0``,
+        ``body_force``, ``solver``, ...).
+
+    Yields
+    ------
+    t : float
+    flow : Flow
+        ``flow.report`` carries the step's :class:`StepInfo` as ``flow.step``.
+    """
+    dt = positive("dt", dt)
+    integ = BDF2Integrator(mesh, fluid, velocity, **options)
+    if not (math.isfinite(t_end) and t_end > integ.t):
+        raise ValueError(f"t_end = {t_end!r}: must be finite and > the initial time {integ.t}")
+    ctrl = ts.StepController(tol=tol, max_ratio=max_ratio, dt_max=dt_max,
+                             dt_min=dt * 1e-6 if dt_min is None else dt_min)
+    eps = 1e-12 * max(t_end, dt)
+    while integ.t < t_end - eps:
+        rejected = 0
+        while True:
+            remaining = t_end - integ.t
+            # land on t_end exactly; keep dt (and the factorisation) when only rounding differs
+            step = dt if abs(remaining - dt) <= 1e-9 * dt or remaining > dt else remaining
+            if integ.dt_prev is not None:
+                step = min(step, max_ratio * integ.dt_prev)
+            t0 = time.perf_counter()
+            try:
+                x, its, err, gm = integ.try_step(step)
+            except ConvergenceError:
+                if rejected >= max_rejections or step <= ctrl.dt_min:
+                    raise
+                rejected += 1
+                dt = max(step * 0.5, ctrl.dt_min)
+                continue
+            if adaptive and err is not None:
+                ok, dt_next = ctrl.propose(step, err)
+                if not ok:
+                    rejected += 1
+                    if rejected > max_rejections or step <= ctrl.dt_min:
+                        raise ConvergenceError(
+                            f"evolve: {rejected} rejected steps in a row at t={integ.t:.6g} "
+                            f"(dt={step:.3e}, error {err:.2e} > tol {tol:.0e})")
+                    dt = dt_next
+                    continue
+                dt = dt_next
+            break
+        integ.commit(x, step)
+        if abs(integ.t - t_end) <= eps:
+            integ.t = float(t_end)
+        flow = integ.flow()
+        flow.step = StepInfo(t=integ.t, dt=step, iterations=its, error=err, rejected=rejected,
+                             gmres=gm, wall_time={"step": time.perf_counter() - t0})
+        yield integ.t, flow

@@ -1,0 +1,120 @@
+"""Variable-step BDF2: coefficients, predictor, local error estimate, step control.
+
+The corrected form of the paper's Eq. 1 (DESIGN.md), with ``w = dt_n / dt_{n-1}``::
+
+    du/dt(t_{n+1}) ~ a0 u_{n+1} + a1 u_n + a2 u_{n-1}
+    a0 = (1 + 2w) / (dt_n (1 + w)),  a1 = -(1 + w) / dt_n,  a2 = w^2 / (dt_n (1 + w))
+
+The predictor is the explicit second-order Adams-Bashforth formula on the
+time derivatives; Milne's device turns the predictor-corrector difference
+into an estimate of the corrector's local error. With the Taylor expansions
+``u_c - u = Cc dt^3 u'''`` and ``u - u_p = Cp dt^3 u'''``::
+
+    Cc = (1 + w)^2 / (6 w (1 + 2 w)),   Cp = 1/6 + 1/(4 w)
+    err ~ Cc / (Cc + Cp) * (u_c - u_p)          (8/23 for w = 1)
+
+Variable-step BDF2 is zero-stable for ``w < 1 + sqrt(2)``; the controller
+caps the growth ratio below that.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._validate import positive
+
+#: Zero-stability limit of the step ratio for variable-step BDF2.
+MAX_STABLE_RATIO = 1.0 + math.sqrt(2.0)
+
+
+def bdf2_coefficients(dt: float, dt_prev: float | None) -> tuple[float, float, float]:
+    """``(a0, a1, a2)`` of the variable-step BDF2 derivative.
+
+    ``dt_prev=None`` gives backward Euler ``(1/dt, -1/dt, 0)``.
+
+    Examples
+    --------
+    >>> bdf2_coefficients(0.1, 0.1)
+    (15.0, -20.0, 5.0)
+    """
+    if dt_prev is None:
+        return 1.0 / dt, -1.0 / dt, 0.0
+    w = dt / dt_prev
+    return (1 + 2 * w) / (dt * (1 + w)), -(1 + w) / dt, w * w / (dt * (1 + w))
+
+
+def predict(u_n: np.ndarray, du_n: np.ndarray, du_prev: np.ndarray | None, dt: float,
+            dt_prev: float | None) -> np.ndarray:
+    """Explicit predictor: AB2 ``u_n + dt ((1 + w/2) u'_n - (w/2) u'_{n-1})``.
+
+    Falls back to forward Euler when no earlier derivative exists.
+    """
+    if du_prev is None or dt_prev is None:
+        return u_n + dt * du_n
+    w = dt / dt_prev
+    return u_n + dt * ((1 + 0.5 * w) * du_n - 0.5 * w * du_prev)
+
+
+def milne_factor(dt: float, dt_prev: float | None) -> float:
+    """Factor ``Cc / (Cc + Cp)`` turning ``u_c - u_p`` into the local error.
+
+    For the backward-Euler/forward-Euler pair of the first step it is 1/2.
+    """
+    if dt_prev is None:
+        return 0.5
+    w = dt / dt_prev
+    Cc = (1 + w) ** 2 / (6 * w * (1 + 2 * w))
+    Cp = 1.0 / 6.0 + 1.0 / (4.0 * w)
+    return Cc / (Cc + Cp)
+
+
+@dataclass
+class StepController:
+    """Accept/reject and the next step size from the local error estimate.
+
+    Parameters
+    ----------
+    tol : float
+        Target of the scaled local error (``err <= tol`` is accepted).
+    safety : float
+        Safety factor on the optimal step.
+    max_ratio : float
+        Largest growth ratio ``dt_new / dt``; must be < 1 + sqrt(2).
+    min_ratio : float
+        Smallest shrink ratio after a rejection.
+    dt_min, dt_max : float
+        Bounds of the step size.
+    """
+
+    tol: float = 1e-3
+    safety: float = 0.9
+    max_ratio: float = 2.0
+    min_ratio: float = 0.2
+    dt_min: float = 0.0
+    dt_max: float = math.inf
+
+    def __post_init__(self):
+        positive("tol", self.tol)
+        if not (1.0 < self.max_ratio < MAX_STABLE_RATIO):
+            raise ValueError(f"max_ratio = {self.max_ratio}: must be in (1, 1 + sqrt(2) = "
+                             f"{MAX_STABLE_RATIO:.4f}) for a zero-stable variable-step BDF2")
+        if not (0.0 < self.min_ratio < 1.0):
+            raise ValueError(f"min_ratio = {self.min_ratio}: must be in (0, 1)")
+        positive("dt_min", self.dt_min, allow_zero=True)
+        if not self.dt_max > 0:
+            raise ValueError(f"dt_max = {self.dt_max!r}: must be > 0")
+
+    def propose(self, dt: float, err: float) -> tuple[bool, float]:
+        """Return ``(accepted, next dt)`` for a step of size ``dt`` with error ``err``."""
+        accepted = err <= self.tol
+        if err == 0.0 or not math.isfinite(err):
+            factor = self.max_ratio if err == 0.0 else self.min_ratio
+        else:
+            factor = self.safety * (self.tol / err) ** (1.0 / 3.0)
+        factor = min(self.max_ratio, max(self.min_ratio, factor))
+        if not accepted:
+            factor = min(factor, 0.9)
+        return accepted, float(min(self.dt_max, max(self.dt_min, dt * factor)))

@@ -1,0 +1,73 @@
+"""Canonical test geometries built directly with ``triangle``.
+
+The fluid tests must not depend on the ``meshing`` package (they test the
+fluid core alone), so the few meshes they need are made here: an annulus
+between two regular polygons, a rectangle with an optional polygonal hole.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import triangle
+from skfem import MeshTri
+
+
+def regular_polygon(n: int, radius: float, center=(0.0, 0.0), angle: float = 0.0) -> np.ndarray:
+    """Counter-clockwise vertices ``(2, n)`` of a regular polygon."""
+    phi = angle + 2 * np.pi * np.arange(n) / n
+    return np.array([center[0] + radius * np.cos(phi), center[1] + radius * np.sin(phi)])
+
+
+def _loop(start: int, n: int) -> np.ndarray:
+    i = np.arange(n)
+    return np.stack([start + i, start + (i + 1) % n], axis=1)
+
+
+def _mesh(vertices, segments, markers, holes, max_area, names):
+    data = dict(vertices=vertices, segments=segments, segment_markers=markers[:, None])
+    if holes:
+        data["holes"] = np.array(holes)
+    out = triangle.triangulate(data, f"pq30a{max_area:.12f}")
+    mesh = MeshTri(out["vertices"].T.copy(), out["triangles"].T.copy())
+    # facets to segment markers via vertex pairs of the output segments
+    seg = np.sort(out["segments"], axis=1)
+    mark = out["segment_markers"].ravel()
+    f = np.sort(mesh.facets.T, axis=1)
+    key = {tuple(s): m for s, m in zip(seg.tolist(), mark.tolist(), strict=True)}
+    fm = np.array([key.get(tuple(e), 0) for e in f.tolist()])
+    return mesh.with_boundaries({nm: np.flatnonzero(fm == m) for m, nm in names.items()})
+
+
+def annulus(a: float, b: float, n_inner: int, n_outer: int, max_area: float) -> MeshTri:
+    """Mesh between a regular ``n_inner``-gon of radius ``a`` and an ``n_outer``-gon of radius ``b``.
+
+    Boundaries: ``"inner"`` and ``"outer"``.
+    """
+    vin = regular_polygon(n_inner, a)
+    vout = regular_polygon(n_outer, b)
+    V = np.hstack([vout, vin]).T
+    S = np.vstack([_loop(0, n_outer), _loop(n_outer, n_inner)])
+    M = np.concatenate([np.full(n_outer, 1), np.full(n_inner, 2)])
+    return _mesh(V, S, M, [(0.0, 0.0)], max_area, {1: "outer", 2: "inner"})
+
+
+def box(x0, y0, x1, y1, max_area, hole=None) -> MeshTri:
+    """Rectangle with boundaries left/right/bottom/top (and ``"particle0"`` around ``hole``).
+
+    ``hole`` is a ``(2, n)`` counter-clockwise polygon inside the box.
+    """
+    V = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=float)
+    S = _loop(0, 4)
+    M = np.array([3, 2, 4, 1])  # bottom, right, top, left
+    holes = []
+    if hole is not None:
+        n = hole.shape[1]
+        V = np.vstack([V, hole.T])
+        S = np.vstack([S, _loop(4, n)])
+        M = np.concatenate([M, np.full(n, 5)])
+        holes = [tuple(hole.mean(axis=1))]
+    mesh = _mesh(V, S, M, holes, max_area,
+                 {1: "left", 2: "right", 3: "bottom", 4: "top", 5: "particle0"})
+    b = mesh.boundaries
+    walls = np.concatenate([b[k] for k in ("left", "right", "bottom", "top")])
+    return mesh.with_boundaries({"wall": walls})

@@ -1,0 +1,90 @@
+"""Steady Navier-Stokes: Kovasznay flow (VALIDATION.md case 5), Newton reports and failures."""
+
+import numpy as np
+import pytest
+from skfem import Functional, MeshTri, asm
+
+import skfem_granular as sg
+from skfem_granular.fluid import ConvergenceError
+
+RE = 40.0
+LAM = RE / 2 - np.sqrt(RE**2 / 4 + 4 * np.pi**2)
+
+
+def kovasznay(x, y):
+    e = np.exp(LAM * x)
+    return 1 - e * np.cos(2 * np.pi * y), LAM / (2 * np.pi) * e * np.sin(2 * np.pi * y)
+
+
+def kovasznay_p(x, y):
+    return (1 - np.exp(2 * LAM * x)) / 2
+
+
+def _mesh(n):
+    m = MeshTri.init_tensor(np.linspace(-0.5, 1.0, 3 * n + 1), np.linspace(-0.5, 1.5, 4 * n + 1))
+    return m.with_boundaries({"all": lambda x: np.ones(x.shape[1], dtype=bool)})
+
+
+@Functional
+def _u_err2(w):
+    ux, uy = kovasznay(*w.x)
+    return (w["u"][0] - ux) ** 2 + (w["u"][1] - uy) ** 2
+
+
+@Functional
+def _p_err2(w):
+    return (w["p"] - kovasznay_p(*w.x) - w["c"]) ** 2
+
+
+@Functional
+def _p_exact(w):
+    return kovasznay_p(*w.x)
+
+
+def _errors(flow):
+    sp = flow.space
+    area = np.ptp(sp.mesh.p[0]) * np.ptp(sp.mesh.p[1])
+    c = -asm(_p_exact, sp.pb) / area  # flow.p has zero mean; exact p shifted accordingly
+    eu = np.sqrt(asm(_u_err2, sp.ub, u=sp.ub.interpolate(flow.u)))
+    ep = np.sqrt(asm(_p_err2, sp.pb, p=sp.pb.interpolate(flow.p), c=c))
+    return eu, ep
+
+
+def test_kovasznay_convergence_orders():
+    eu, ep = [], []
+    for n in (2, 4, 8):
+        flow = sg.solve_steady(_mesh(n), sg.Fluid(1.0, 1 / RE), {"all": kovasznay},
+                               convection=True)
+        assert flow.report.residuals[-1] < 1e-10
+        assert flow.report.iterations <= 8
+        a, b = _errors(flow)
+        eu.append(a)
+        ep.append(b)
+    order_u = np.log2(eu[-2] / eu[-1])
+    order_p = np.log2(ep[-2] / ep[-1])
+    assert order_u >= 2.7, eu
+    assert order_p >= 1.8, ep
+    assert eu[-1] < 1e-3
+
+
+def test_newton_converges_quadratically():
+    flow = sg.solve_steady(_mesh(4), sg.Fluid(1.0, 1 / RE), {"all": kovasznay}, convection=True)
+    r = np.array(flow.report.residuals)
+    # after the first (Stokes) step, each Newton step at least squares the residual
+    # up to a constant: r_{k+1} <= C r_k^2 with C modest
+    k = np.flatnonzero(r < 1e-2)[0]
+    assert r[k + 1] <= 50 * r[k] ** 2 + 1e-13
+
+
+def test_newton_failure_gives_clear_error():
+    with pytest.raises(ConvergenceError, match="did not converge in 2 iterations"):
+        sg.solve_steady(_mesh(2), sg.Fluid(1.0, 1e-4), {"all": kovasznay}, convection=True,
+                        maxiter=2)
+
+
+def test_stokes_and_navier_stokes_agree_at_low_reynolds():
+    mesh = _mesh(2)
+    fluid = sg.Fluid(1.0, 1e3)  # Re ~ 1e-3
+    s = sg.solve_steady(mesh, fluid, {"all": kovasznay})
+    n = sg.solve_steady(mesh, fluid, {"all": kovasznay}, convection=True)
+    assert np.abs(s.u - n.u).max() < 1e-2 * np.abs(s.u).max() * 1e-1
