@@ -86,3 +86,21 @@ def test_free_flight_is_exact():
     np.testing.assert_allclose(q[:, 0], [1.0 * T, 2.0 * T - 0.5 * 9.81 * T**2, 3.0 * T],
                                rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(v[:, 0], [1.0, 2.0 - 9.81 * T, 3.0], rtol=1e-12)
+
+
+def test_system_restarts_history_on_large_step_growth():
+    # growing the step by more than MAX_STEP_RATIO restarts the BDF2 history;
+    # free fall stays exact either way (both starts are exact for constant acceleration)
+    from skfem_granular.dem import DEMSystem, Particle, Polygon
+    from skfem_granular.dem.system import MAX_STEP_RATIO
+
+    s = DEMSystem([Particle(Polygon.regular(6, 1e-3), 2650.0)])
+    s.step(s.dt_stable / 10)
+    s.step(s.dt_stable / 10)
+    assert s.bdf2.dt_prev is not None
+    s.step(s.dt_stable)  # ratio 10 > MAX_STEP_RATIO
+    assert MAX_STEP_RATIO < 1 + np.sqrt(2)
+    assert s.bdf2.q_prev is not None and s.bdf2.dt_prev == s.dt_stable
+    T = s.t
+    assert s.velocities[1, 0] == pytest.approx(-9.81 * T, rel=1e-12)
+    assert s.positions[1, 0] == pytest.approx(-0.5 * 9.81 * T**2, rel=1e-10)

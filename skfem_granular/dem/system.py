@@ -13,7 +13,10 @@ from .integrator import BDF2History, correct, predict, stable_time_step
 from .particles import Body, ParticleArrays, rotate_outlines
 from .walls import WallArrays, box_walls
 
-__all__ = ["DEMSystem"]
+__all__ = ["MAX_STEP_RATIO", "DEMSystem"]
+
+#: larger step growth restarts BDF2 with its one-step start (zero stability: w < 1 + sqrt 2)
+MAX_STEP_RATIO = 2.0
 
 
 def _repad(V: np.ndarray, nmax: int) -> np.ndarray:
@@ -242,6 +245,10 @@ class DEMSystem:
         """One BDF2 predictor-corrector step of size ``dt`` (default :attr:`dt`)."""
         dt = self.dt if dt is None else self._check_dt(dt)
         p = self.particles
+        h = self.bdf2
+        if h.dt_prev is not None and dt / h.dt_prev > MAX_STEP_RATIO:
+            # variable-step BDF2 is zero-stable only for w < 1 + sqrt(2): restart
+            h.q_prev = h.v_prev = h.a_prev = h.dt_prev = None
         if self.bdf2.a is None:
             self.bdf2.a, self.contacts = self.evaluate(p.q, p.v, self.t, 0.0)
         qp, vp = predict(p.q, p.v, self.bdf2, dt)
