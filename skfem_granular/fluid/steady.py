@@ -76,7 +76,7 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
         Jr = op.reduced(J)
         times["assembly"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        lin.factorize(Jr, op.nu_free, **(op.solver_blocks() if lin.name == "krylov" else {}))
+        lin.factorize(Jr, op.nu_free, **op.solver_blocks())
         dx = lin.solve(-r[free])
         times["solve"] += time.perf_counter() - t0
         return dx

@@ -138,7 +138,7 @@ class BDF2Integrator:
             self._A_uu = self.op.velocity_block(a0)
             J = self.op.reduced(self.op.matrix(self._A_uu))
             t1 = time.perf_counter()
-            blocks = self.op.solver_blocks(a0) if self.solver.name == "krylov" else {}
+            blocks = self.op.solver_blocks(a0)
             self.solver.factorize(J, self.op.nu_free, **blocks)
             self.timings["assembly"] += t1 - t0
             self.timings["factorization"] += time.perf_counter() - t1
