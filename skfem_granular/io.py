@@ -111,7 +111,7 @@ class PVDSeries:
     def write(self, t: float, save) -> Path:
         """Write frame at time ``t``: ``save(vtu_path)`` writes the VTU file."""
         name = f"{self.path.stem}_{len(self.frames):05d}.vtu"
-        save(self.path.parent / name)
+        atomic_write(self.path.parent / name, save)
         self.frames.append((float(t), name))
         self._write_index()
         return self.path.parent / name

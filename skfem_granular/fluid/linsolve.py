@@ -131,7 +131,8 @@ class SuperLUSolver(SaddlePointSolver):
         self._static = self.delta > 0 and A.shape[0] > self.nu
         if self._static:
             n, nu = A.shape[0], self.nu
-            vmax = abs(self._A[:nu, :nu]).max()
+            # typical velocity pivot (not the max: rigid-body rows of a coupled system are huge)
+            vmax = float(np.median(np.abs(self._A.diagonal()[:nu])))
             Mp = blocks.get("Mp")
             if Mp is None:
                 reg = sp.diags(np.r_[np.zeros(nu), np.full(n - nu, self.delta * vmax)])
@@ -196,20 +197,43 @@ class PardisoSolver(SaddlePointSolver):
 class KrylovSolver(SaddlePointSolver):
     """FGMRES with a pyamg block-triangular preconditioner.
 
+    The velocity block is approximated by an inner solve to ``inner_rtol``:
+    conjugate gradients (symmetric block, Stokes) or GMRES (with convection)
+    preconditioned by smoothed aggregation, whose near-nullspace is the two
+    constant vector fields (the free velocity unknowns come in interleaved
+    ``(x, y)`` pairs). The pressure Schur complement is approximated as in
+    Cahouet-Chabard, ``S^-1 ~ eta Mp^-1 + a0 rho Lp^-1``, with the pressure
+    mass matrix factorised exactly. A single V-cycle and a lumped mass
+    matrix instead needed ~200 FGMRES iterations on a 10k-unknown Stokes
+    problem (annulus, 64 segments), this needs ~35.
+
     Parameters
     ----------
     rtol : float
         Relative residual tolerance of FGMRES (on the scaled system).
     maxiter : int
-        Iteration limit; exceeding it raises :class:`ConvergenceError`.
+        Limit on the total number of FGMRES iterations; exceeding it raises
+        :class:`ConvergenceError`.
+    restart : int
+        Krylov vectors kept before a restart (memory: ``2 restart`` vectors
+        of the system size).
+    inner_rtol : float
+        Relative tolerance of the inner velocity solve.
     """
 
     name = "krylov"
 
-    def __init__(self, rtol: float = 1e-10, maxiter: int = 300):
+    def __init__(self, rtol: float = 1e-10, maxiter: int = 300, restart: int = 100,
+                 inner_rtol: float = 1e-2):
         super().__init__()
-        self.rtol = rtol
-        self.maxiter = maxiter
+        from .._validate import positive
+
+        self.rtol = positive("rtol", rtol)
+        self.inner_rtol = positive("inner_rtol", inner_rtol)
+        if int(maxiter) < 1 or int(restart) < 1:
+            raise ValueError(f"maxiter = {maxiter!r}, restart = {restart!r}: must be >= 1")
+        self.maxiter = int(maxiter)
+        self.restart = int(restart)
 
     def _factorize(self, A, Mp=None, Lp=None, eta=1.0, a0rho=0.0, **blocks):
         import pyamg
@@ -217,28 +241,41 @@ class KrylovSolver(SaddlePointSolver):
         nu = self.nu
         s = self._scale[-1] if self._scale.size > nu else 1.0
         self._A = A.tocsr()
-        Auu = self._A[:nu, :nu]
+        Auu = self._A[:nu, :nu].tocsr()
         self._Bt = self._A[:nu, nu:]
-        self._ml_u = pyamg.smoothed_aggregation_solver(Auu.tocsr(), symmetry="nonsymmetric")
+        amax = abs(Auu).max() if Auu.nnz else 1.0
+        self._symmetric = Auu.nnz == 0 or abs(Auu - Auu.T).max() <= 1e-12 * amax
+        B = None
+        if nu >= 2 and nu % 2 == 0:  # near-nullspace: x and y translations
+            B = np.zeros((nu, 2))
+            B[0::2, 0] = 1.0
+            B[1::2, 1] = 1.0
+        self._ml_u = pyamg.smoothed_aggregation_solver(
+            Auu, B=B, symmetry="symmetric" if self._symmetric else "nonsymmetric")
         npr = A.shape[0] - nu
         if Mp is None:
             Mp = sp.identity(npr)
         # Schur complement of the scaled system: s^2 * (eta Mp^-1 + a0 rho Lp^-1)^-1 (negated)
-        self._mp_diag = np.asarray(Mp.sum(axis=1)).ravel()
+        self._mp_lu = spla.splu(sp.csc_matrix(Mp)) if npr else None
         self._eta, self._a0rho, self._s = eta, a0rho, s
         self._ml_p = None
-        if Lp is not None and a0rho > 0:
+        if Lp is not None and a0rho > 0 and npr:
             Lreg = (Lp + 1e-8 * abs(Lp).max() * sp.identity(npr)).tocsr()
             self._ml_p = pyamg.smoothed_aggregation_solver(Lreg)
 
     def _precondition(self, r):
         nu = self.nu
         ru, rp = r[:nu], r[nu:]
-        zp = self._eta * rp / self._mp_diag
-        if self._ml_p is not None:
-            zp = zp + self._a0rho * self._ml_p.solve(rp, tol=1e-3, maxiter=2, cycle="V")
-        zp = -zp / self._s**2
-        zu = self._ml_u.solve(ru - self._Bt @ zp, tol=1e-2, maxiter=1, cycle="V")
+        if rp.size:
+            zp = self._eta * self._mp_lu.solve(rp)
+            if self._ml_p is not None:
+                zp = zp + self._a0rho * self._ml_p.solve(rp, tol=1e-3, maxiter=2, cycle="V")
+            zp = -zp / self._s**2
+            ru = ru - self._Bt @ zp
+        else:
+            zp = rp
+        accel = "cg" if self._symmetric else "gmres"
+        zu = self._ml_u.solve(ru, tol=self.inner_rtol, maxiter=20, cycle="V", accel=accel)
         return np.concatenate([zu, zp])
 
     def _solve(self, b):
@@ -248,15 +285,18 @@ class KrylovSolver(SaddlePointSolver):
 
         n = b.size
         M = spla.LinearOperator((n, n), matvec=self._precondition, dtype=float)
+        restart = min(self.restart, self.maxiter, n)
+        outer = -(-self.maxiter // restart)
         residuals = []
-        x, info = fgmres(self._A, b, M=M, tol=self.rtol, maxiter=self.maxiter, restart=None,
+        x, info = fgmres(self._A, b, M=M, tol=self.rtol, restart=restart, maxiter=outer,
                          residuals=residuals)
-        self.stats.iterations.append(len(residuals) - 1)
-        if info != 0:
-            rel = residuals[-1] / max(residuals[0], 1e-300)
-            raise ConvergenceError(f"Krylov solver: FGMRES stopped after {len(residuals) - 1} "
+        its = len(residuals) - 1
+        self.stats.iterations.append(its)
+        rel = np.linalg.norm(b - self._A @ x) / max(np.linalg.norm(b), 1e-300)
+        if info != 0 or not rel <= self.rtol * 10:
+            raise ConvergenceError(f"Krylov solver: FGMRES stopped after {its} "
                                    f"iterations at relative residual {rel:.2e} > rtol "
-                                   f"{self.rtol:.0e}; use solver='superlu' or a finer tolerance")
+                                   f"{self.rtol:.0e}; use solver='superlu' or a larger maxiter")
         return x
 
 
@@ -276,8 +316,9 @@ def make_solver(solver: str | SaddlePointSolver = "auto", size: int = 0) -> Sadd
     """
     if isinstance(solver, SaddlePointSolver):
         return solver
+    if not isinstance(solver, str) or solver not in ("auto", *SOLVERS):
+        raise ValueError(f"solver = {solver!r}: must be a SaddlePointSolver or one of 'auto', "
+                         f"{', '.join(map(repr, SOLVERS))}")
     if solver == "auto":
         solver = "krylov" if size > AUTO_KRYLOV_SIZE else "superlu"
-    if solver not in SOLVERS:
-        raise ValueError(f"solver = {solver!r}: must be one of 'auto', {', '.join(map(repr, SOLVERS))}")
     return SOLVERS[solver]()

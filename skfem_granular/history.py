@@ -1,0 +1,55 @@
+"""Time-series record of a run: arrays in memory, CSV on disk."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .io import atomic_write
+
+#: Per-particle columns: name -> how to read it from a record.
+PARTICLE_COLUMNS = ("x", "y", "angle", "vx", "vy", "omega", "ax", "ay", "Fx", "Fy", "torque",
+                    "contacts")
+
+
+class History:
+    """Rows appended once per step; columns as arrays.
+
+    Attributes after :meth:`arrays`: ``t``, ``dt``, ``iterations`` (N,) and
+    for each particle column a ``(N, K)`` array: positions ``x``, ``y``,
+    ``angle``, velocities ``vx``, ``vy``, ``omega``, accelerations ``ax``,
+    ``ay``, fluid forces ``Fx``, ``Fy``, ``torque`` and contact counts.
+    """
+
+    def __init__(self, n_particles: int):
+        self.K = n_particles
+        self.rows = []
+
+    def append(self, t: float, dt: float, iterations: int, **particle):
+        """Add one step; ``particle`` holds ``(K,)`` arrays named as :data:`PARTICLE_COLUMNS`."""
+        row = {"t": t, "dt": dt, "iterations": iterations}
+        for c in PARTICLE_COLUMNS:
+            row[c] = np.asarray(particle.get(c, np.zeros(self.K)), dtype=float).reshape(self.K)
+        self.rows.append(row)
+
+    def __len__(self):
+        return len(self.rows)
+
+    def __getattr__(self, name):
+        if name in ("t", "dt", "iterations"):
+            return np.array([r[name] for r in self.rows])
+        if name in PARTICLE_COLUMNS:
+            return np.array([r[name] for r in self.rows]).reshape(len(self.rows), self.K)
+        raise AttributeError(name)
+
+    def to_csv(self, path) -> None:
+        """Write the table (one column per quantity and particle) atomically."""
+        head = ["t", "dt", "iterations"] + [f"{c}_{k}" for k in range(self.K)
+                                            for c in PARTICLE_COLUMNS]
+        data = np.column_stack([self.t, self.dt, self.iterations]
+                               + [getattr(self, c)[:, k] for k in range(self.K)
+                                  for c in PARTICLE_COLUMNS]) if self.rows else np.zeros((0, len(head)))
+
+        def write(tmp):
+            np.savetxt(tmp, data, delimiter=",", header=",".join(head), comments="", fmt="%.10g")
+
+        atomic_write(path, write)

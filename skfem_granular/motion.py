@@ -1,0 +1,60 @@
+"""Moving particles on a fixed mesh: when to remesh, and moving fields onto a new mesh.
+
+Between remeshes the fluid mesh keeps the particle outlines where they were
+when it was built (see :mod:`skfem_granular.coupling`). :func:`lag` measures
+how far each particle's material outline has moved since then;
+:func:`transfer` interpolates P2 velocities (and P1 pressures) onto the nodes
+of a new mesh. New nodes in the region a particle has vacated lie just
+outside the old mesh: they are snapped onto the nearest old element, whose
+boundary values are the particle's rigid velocity there. Both BDF2 histories
+``u_n`` and ``u_{n-1}`` must be transferred, or the scheme silently drops to
+first order.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .fluid.points import PointLocator, evaluation_matrix
+
+
+def lag(centers_ref: np.ndarray, angles_ref: np.ndarray, centers: np.ndarray,
+        angles: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Largest displacement ``(K,)`` of an outline point since the mesh was built.
+
+    Translation of the centre plus rotation times the bounding radius.
+    """
+    shift = np.linalg.norm(np.asarray(centers) - np.asarray(centers_ref), axis=0)
+    return shift + np.abs(np.asarray(angles) - np.asarray(angles_ref)) * np.asarray(radii)
+
+
+class FieldTransfer:
+    """Interpolation of P2/P1 fields from an old discretisation onto a new one.
+
+    Parameters
+    ----------
+    old, new : TaylorHood
+        Source and target discretisations.
+    tol : float
+        How far (in barycentric units of the nearest element) a new node may
+        lie outside the old mesh before it is an error.
+    """
+
+    def __init__(self, old, new, tol: float = 1.0):
+        loc = PointLocator(old.mesh)
+        cells, X = loc.locate(new.sb.doflocs, tol=tol, name="new mesh nodes")
+        self._Eu = evaluation_matrix(old.sb, cells, X)
+        cells, X = loc.locate(new.pb.doflocs, tol=tol, name="new mesh vertices")
+        self._Ep = evaluation_matrix(old.pb, cells, X)
+        self.new = new
+
+    def velocity(self, u: np.ndarray) -> np.ndarray:
+        """Velocity DOFs on the new mesh (interleaved x, y)."""
+        out = np.empty(self.new.nu)
+        out[0::2] = self._Eu @ u[0::2]
+        out[1::2] = self._Eu @ u[1::2]
+        return out
+
+    def pressure(self, p: np.ndarray) -> np.ndarray:
+        """Pressure DOFs on the new mesh."""
+        return self._Ep @ p

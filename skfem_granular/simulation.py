@@ -1,0 +1,316 @@
+"""Simulation: builds what a scene calls for and runs it.
+
+The per-step pipeline (monolithic coupling, the default):
+
+1. external forces: buoyancy-reduced gravity ``m g - rho_f A_core g`` and the
+   contact forces of the last DEM evaluation;
+2. the coupled BDF2 corrector (fluid + rigid particle velocities, Eq. 1);
+3. particle positions: the same BDF2 formula on the positions, or, when
+   contacts are active, a subcycled DEM advance with the hydrodynamic force
+   of step 2 held;
+4. remesh when a particle has moved by ``remesh_fraction`` of its outline
+   edge length since the mesh was built, transferring ``u_n`` and ``u_{n-1}``;
+5. history row, VTU frames every ``vtu_every`` steps.
+
+A dry scene (no fluid) builds no mesh and only advances the DEM.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import timestep as ts
+from .dem import DEMSystem
+from .dem.output import write_outlines_vtu
+from .history import History
+from .io import PVDSeries, atomic_write
+from .scene import Scene
+from .simulation_setup import (
+    build_coupling,
+    build_mesh,
+    contacts_needed,
+    outline_areas,
+    outline_edge,
+    scene_warnings,
+)
+
+
+@dataclass
+class SimulationResult:
+    """What a run produced.
+
+    Attributes
+    ----------
+    history : History
+        Per-step table (``history.t``, ``history.vy``, ...).
+    summary : dict
+        Effects, mesh counts, final state, wall times per phase, warnings.
+    output_dir : Path or None
+    """
+
+    history: History
+    summary: dict
+    output_dir: Path | None = None
+    files: list = field(default_factory=list)
+
+
+class Simulation:
+    """A coupled (or dry) simulation of a :class:`~skfem_granular.scene.Scene`.
+
+    Parameters
+    ----------
+    scene : Scene or str or Path
+        The scene, or a TOML file to read it from.
+    output_dir : str or Path, optional
+        Overrides ``scene.output_dir``; ``None`` in both writes nothing.
+    """
+
+    def __init__(self, scene: Scene, output_dir=None):
+        if not isinstance(scene, Scene):
+            scene = Scene.from_toml(scene)
+        self.scene = scene
+        self.timings = defaultdict(float)
+        out = output_dir if output_dir is not None else scene.output_dir
+        self.output_dir = None if out is None else Path(out)
+        if self.output_dir is not None:
+            from .io import _check_writable
+
+            _check_writable(self.output_dir / "summary.json")
+        eff = scene.effects
+        g = np.asarray(scene.gravity) if eff.gravity else np.zeros(2)
+        self.g = g
+        self.dem = DEMSystem.in_box([p.to_dem() for p in scene.particles], scene.domain,
+                                    scene.wall_thickness, law=scene.contact_law, gravity=g,
+                                    dt=scene.time.dem_dt)
+        self.contacts_active = (contacts_needed(scene, self.dem) if eff.contacts == "auto"
+                                else bool(eff.contacts))
+        self.warnings = scene_warnings(scene, self.dem, self.contacts_active)
+        self.remeshes = 0
+        if not scene.dry:
+            t0 = time.perf_counter()
+            self.mesh = build_mesh(scene, self.dem.core_outlines())
+            self.timings["meshing"] += time.perf_counter() - t0
+            self._new_coupling()
+
+    # ------------------------------------------------------------------ setup
+    def _new_coupling(self):
+        t0 = time.perf_counter()
+        self.coupling = build_coupling(self.scene, self.mesh, self.dem)
+        self.space = self.coupling.space
+        self.mesh_centers = self.dem.positions.copy()
+        self.mesh_angles = self.dem.angles.copy()
+        cores = self.dem.core_outlines()
+        self.core_area = outline_areas(cores)
+        self.edge = np.array([outline_edge(c, self.scene.mesh.delta_l) for c in cores])
+        self.radius = np.array([np.linalg.norm(c - c.mean(axis=1, keepdims=True), axis=0).max()
+                                for c in cores])
+        self.timings["assembly"] += time.perf_counter() - t0
+
+    def _external(self):
+        """Buoyancy-reduced gravity plus the last contact forces."""
+        rho_f = 0.0 if self.scene.dry else self.scene.fluid.density
+        F = np.outer(self.g, self.dem.mass)
+        F -= rho_f * np.outer(self.g, self.core_area)
+        T = np.zeros(self.dem.n)
+        if self.contacts_active and getattr(self, "_contact_F", None) is not None:
+            F += self._contact_F
+            T += self._contact_T
+        return F, T
+
+    # ------------------------------------------------------------------ run
+    def run(self, progress: bool | None = None) -> SimulationResult:
+        """Run to ``scene.time.t_end``; returns a :class:`SimulationResult`.
+
+        Parameters
+        ----------
+        progress : bool, optional
+            Show a tqdm progress bar (default: when the run has > 50 steps).
+        """
+        from tqdm.auto import tqdm
+
+        sc = self.scene
+        t_start = time.perf_counter()
+        dt = sc.time.dt
+        n_steps = max(1, int(math.ceil(sc.time.t_end / dt - 1e-9)))
+        hist = History(self.dem.n)
+        series = self._open_series()
+        bar = tqdm(total=n_steps, disable=not (n_steps > 50 if progress is None else progress),
+                   desc=sc.name, unit="step")
+        try:
+            if sc.dry:
+                self._run_dry(n_steps, dt, hist, series, bar)
+            else:
+                self._run_coupled(n_steps, dt, hist, series, bar)
+        finally:
+            bar.close()
+            self.timings["total"] = time.perf_counter() - t_start
+            summary = self.summary(hist)
+            files = self._finish(hist, summary)
+        return SimulationResult(hist, summary, self.output_dir, files)
+
+    def _open_series(self):
+        if self.output_dir is None:
+            return None
+        d = self.output_dir
+        return {"flow": None if self.scene.dry else PVDSeries(d / "flow.pvd"),
+                "particles": PVDSeries(d / "particles.pvd")}
+
+    def _write_frame(self, series, t, x=None):
+        if series is None:
+            return
+        t0 = time.perf_counter()
+        dem = self.dem
+        series["particles"].write(t, lambda f: write_outlines_vtu(f, dem))
+        if x is not None:
+            flow = self.coupling.flow(x)
+            series["flow"].write(t, flow.save)
+        self.timings["output"] += time.perf_counter() - t0
+
+    def _record(self, hist, t, dt, its, acc, F, T):
+        dem = self.dem
+        hist.append(t, dt, its, x=dem.positions[0], y=dem.positions[1], angle=dem.angles,
+                    vx=dem.velocities[0], vy=dem.velocities[1], omega=dem.angular_velocities,
+                    ax=acc[0], ay=acc[1], Fx=F[0], Fy=F[1], torque=T,
+                    contacts=dem.contact_count())
+
+    def _run_dry(self, n_steps, dt, hist, series, bar):
+        dem = self.dem
+        self._write_frame(series, 0.0)
+        v_old = dem.velocities.copy()
+        zeros = np.zeros(dem.n)
+        for k in range(n_steps):
+            t0 = time.perf_counter()
+            dem.advance(dt)
+            self.timings["dem"] += time.perf_counter() - t0
+            acc = (dem.velocities - v_old) / dt
+            v_old = dem.velocities.copy()
+            self._record(hist, dem.t, dt, 0, acc, np.zeros((2, dem.n)), zeros)
+            if self._frame_due(k, n_steps):
+                self._write_frame(series, dem.t)
+            bar.update()
+
+    def _frame_due(self, k, n_steps):
+        every = self.scene.vtu_every
+        return k == n_steps - 1 or (every > 0 and (k + 1) % every == 0)
+
+    def _run_coupled(self, n_steps, dt, hist, series, bar):
+        dem, sc = self.dem, self.scene
+        nu = self.space.nu
+        u_n = np.zeros(nu)
+        u_prev = None
+        p_n = None
+        xi_n = np.vstack([dem.velocities, dem.angular_velocities[None, :]]).copy()
+        xi_prev = None
+        q_n = np.vstack([dem.positions, dem.angles[None, :]]).copy()
+        q_prev = None
+        dt_prev = None
+        t = 0.0
+        self._write_frame(series, 0.0, x=np.zeros(self.space.N))
+        for k in range(n_steps):
+            step = min(dt, sc.time.t_end - t) if k == n_steps - 1 else dt
+            F_ext, T_ext = self._external()
+            res = self.coupling.step(step, dt_prev, u_n, u_prev, xi_n, xi_prev, F_ext, T_ext,
+                                     t + step, p_guess=p_n)
+            a0, a1, a2 = ts.bdf2_coefficients(step, dt_prev)
+            xi_new = res["xi"]
+            t0 = time.perf_counter()
+            if self.contacts_active:
+                rho_f = sc.fluid.density
+                dem.external_force[...] = res["force"] - rho_f * np.outer(self.g, self.core_area)
+                dem.external_torque[...] = res["torque"]
+                dem.advance(step)
+                self._contact_F = dem.force - np.outer(self.g, dem.mass) - dem.external_force
+                self._contact_T = dem.torque - dem.external_torque
+                xi_new = np.vstack([dem.velocities, dem.angular_velocities[None, :]]).copy()
+                q_new = np.vstack([dem.positions, dem.angles[None, :]]).copy()
+            else:
+                q_new = (xi_new - a1 * q_n - (a2 * q_prev if q_prev is not None else 0.0)) / a0
+                dem.positions[...] = q_new[:2]
+                dem.angles[...] = q_new[2]
+                dem.velocities[...] = xi_new[:2]
+                dem.angular_velocities[...] = xi_new[2]
+                dem.t = t + step
+            self.timings["dem"] += time.perf_counter() - t0
+            acc = a0 * xi_new + a1 * xi_n + (a2 * xi_prev if xi_prev is not None else 0.0)
+            x = res["x"]
+            u_prev, u_n = u_n, x[:nu].copy()
+            p_n = x[nu:].copy()
+            xi_prev, xi_n = xi_n, xi_new
+            q_prev, q_n = q_n, q_new
+            dt_prev = step
+            t += step
+            if not np.all(np.isfinite(x)) or not np.all(np.isfinite(q_new)):
+                raise FloatingPointError(f"step {k + 1} (t={t:.6g}): the solution contains NaN/inf")
+            self._record(hist, t, step, res["iterations"], acc, res["force"], res["torque"])
+            if self._frame_due(k, n_steps):
+                self._write_frame(series, t, x=x)
+            if k < n_steps - 1:
+                u_n, u_prev, p_n = self._maybe_remesh(u_n, u_prev, p_n)
+            bar.update()
+
+    def _maybe_remesh(self, u_n, u_prev, p_n):
+        from .motion import FieldTransfer, lag
+
+        dem, sc = self.dem, self.scene
+        moved = lag(self.mesh_centers, self.mesh_angles, dem.positions, dem.angles, self.radius)
+        if not np.any(moved > sc.remesh_fraction * self.edge):
+            return u_n, u_prev, p_n
+        if not sc.effects.remeshing:
+            raise RuntimeError(f"particles moved {moved.max():.3g} m, more than "
+                               f"remesh_fraction x edge length, and effects.remeshing is off")
+        import meshing
+
+        t0 = time.perf_counter()
+        old = self.space
+        self.mesh = meshing.remesh(self.mesh, dem.core_outlines())
+        self.timings["meshing"] += time.perf_counter() - t0
+        self._new_coupling()
+        t0 = time.perf_counter()
+        tr = FieldTransfer(old, self.space)
+        u_n = tr.velocity(u_n)
+        u_prev = None if u_prev is None else tr.velocity(u_prev)
+        p_n = tr.pressure(p_n)
+        self.timings["remeshing"] += time.perf_counter() - t0
+        self.remeshes += 1
+        return u_n, u_prev, p_n
+
+    # ------------------------------------------------------------------ report
+    def summary(self, hist: History) -> dict:
+        """Run summary: effects, mesh, final state, wall times, warnings."""
+        sc = self.scene
+        eff = sc.effects
+        active = {"fluid": not sc.dry, "gravity": eff.gravity,
+                  "convection": (not sc.dry) and eff.convection, "contacts": self.contacts_active,
+                  "rotation": eff.rotation, "remeshing": (not sc.dry) and eff.remeshing}
+        out = {"scene": sc.name, "effects": active, "coupling": None if sc.dry else sc.coupling,
+               "particles": self.dem.n, "steps": len(hist), "t_end": float(hist.t[-1]) if len(hist) else 0.0,
+               "dt": sc.time.dt, "remeshes": self.remeshes, "warnings": list(self.warnings),
+               "wall_time": {k: round(v, 6) for k, v in self.timings.items()}}
+        if not sc.dry:
+            import meshing
+
+            st = meshing.mesh_stats(self.mesh)
+            out["mesh"] = {"kind": sc.mesh.kind, "vertices": st.n_vertices,
+                           "p2_nodes": st.n_p2_nodes, "triangles": st.n_triangles,
+                           "dofs": int(self.space.N), "min_angle": float(st.min_angle)}
+        if len(hist):
+            out["final"] = {"x": hist.x[-1].tolist(), "y": hist.y[-1].tolist(),
+                            "vx": hist.vx[-1].tolist(), "vy": hist.vy[-1].tolist(),
+                            "omega": hist.omega[-1].tolist()}
+        return out
+
+    def _finish(self, hist, summary):
+        if self.output_dir is None:
+            return []
+        d = self.output_dir
+        hist.to_csv(d / "history.csv")
+        text = json.dumps(summary, indent=2)
+        atomic_write(d / "summary.json", lambda tmp: Path(tmp).write_text(text))
+        return [d / "history.csv", d / "summary.json"]

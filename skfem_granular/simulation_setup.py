@@ -1,0 +1,100 @@
+"""Building blocks of a :class:`~skfem_granular.simulation.Simulation`: mesh, coupling, effects."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .fluid.space import TaylorHood
+
+
+def outline_areas(outlines) -> np.ndarray:
+    """Areas ``(K,)`` of counter-clockwise outlines (shoelace formula)."""
+    return np.array([0.5 * float(np.sum(o[0] * np.roll(o[1], -1) - np.roll(o[0], -1) * o[1]))
+                     for o in outlines])
+
+
+def outline_edge(outline: np.ndarray, delta_l: float | None) -> float:
+    """Mesh edge length on an outline: ``delta_l`` or the longest polygon edge."""
+    e = np.linalg.norm(np.roll(outline, -1, axis=1) - outline, axis=0).max()
+    return float(min(e, delta_l) if delta_l else e)
+
+
+def build_mesh(scene, cores):
+    """The fluid mesh of ``scene`` around the particle cores."""
+    import meshing
+
+    m = scene.mesh
+    if m.kind == "graded":
+        return meshing.graded_mesh(scene.domain, cores, sigma=m.sigma, delta_l=m.delta_l)
+    if m.kind == "uniform":
+        return meshing.uniform_mesh(scene.domain, cores, h=m.h, delta_l=m.delta_l)
+    return meshing.group_mesh(scene.domain, cores, h=m.h, sigma=m.sigma, delta_l=m.delta_l)
+
+
+def build_coupling(scene, mesh, dem):
+    """The coupling object for the current mesh and particle state."""
+    from .coupling import MonolithicCoupling
+    from .coupling_partitioned import PartitionedCoupling
+
+    space = TaylorHood(mesh)
+    walls = {"wall": (0.0, 0.0)}
+    cls = MonolithicCoupling if scene.coupling == "monolithic" else PartitionedCoupling
+    return cls(space, scene.fluid, walls, dem.positions.copy(), dem.mass.copy(),
+               dem.inertia.copy(), convection=scene.effects.convection,
+               rotation=scene.effects.rotation)
+
+
+def contacts_needed(scene, dem) -> bool:
+    """Whether two shadows, or a shadow and a wall, could meet during the run.
+
+    Compares the smallest gap between bounding circles (particles) and
+    between a bounding circle and the domain box (walls) with the distance a
+    particle can travel: ``|v0| t + |g| t^2 / 2`` plus a 10 % safety margin
+    of the bounding radius.
+    """
+    T = scene.time.t_end
+    pos = dem.positions
+    shadows = dem.shadow_outlines()
+    R = np.array([np.linalg.norm(s - pos[:, [k]], axis=0).max() for k, s in enumerate(shadows)])
+    speed = np.hypot(*dem.velocities) + np.abs(dem.angular_velocities) * R
+    g = np.hypot(*scene.gravity) if scene.effects.gravity else 0.0
+    travel = speed * T + 0.5 * g * T**2 + 0.1 * R
+    x0, y0, x1, y1 = scene.domain
+    gap_wall = np.min([pos[0] - x0, x1 - pos[0], pos[1] - y0, y1 - pos[1]], axis=0) - R
+    if np.any(gap_wall <= travel):
+        return True
+    if dem.n > 1:
+        d = np.linalg.norm(pos[:, :, None] - pos[:, None, :], axis=0)
+        gap = d - R[:, None] - R[None, :]
+        np.fill_diagonal(gap, np.inf)
+        if np.any(gap <= travel[:, None] + travel[None, :]):
+            return True
+    return False
+
+
+def scene_warnings(scene, dem, contacts_active: bool) -> list[str]:
+    """Contradictions in a scene worth telling the user about."""
+    out = []
+    if scene.dry:
+        return out
+    fl = scene.fluid
+    # Stokes settling speed per unit length is ill-defined in 2D; estimate the particle
+    # Reynolds number from the free-fall speed reached in the run, capped by the
+    # terminal speed of a sphere of the same diameter (an upper bound in 2D channels).
+    rho_p = np.array([p.density for p in scene.particles])
+    diam = 2 * np.sqrt(outline_areas(dem.core_outlines()) / np.pi)
+    g = np.hypot(*scene.gravity) if scene.effects.gravity else 0.0
+    v_fall = np.abs(rho_p - fl.density) / rho_p * g * scene.time.t_end
+    v_stokes = np.abs(rho_p - fl.density) * g * diam**2 / (18 * fl.viscosity)
+    v0 = np.hypot(*dem.velocities)
+    v = np.maximum(np.minimum(v_fall, v_stokes), v0)
+    Re = float(np.max(fl.density * v * diam / fl.viscosity))
+    if not scene.effects.convection and Re > 1.0:
+        out.append(f"convection is off but the particle Reynolds number reaches ~{Re:.2g} > 1: "
+                   "unsteady Stokes underestimates the drag; turn effects.convection on")
+    if scene.coupling == "partitioned" and np.any(rho_p < 2.0 * fl.density):
+        out.append("partitioned coupling with particles lighter than twice the fluid density: "
+                   "expect the added-mass instability; use coupling.scheme = 'monolithic'")
+    if scene.effects.contacts is False and dem.n > 1:
+        out.append("contacts are off with several particles: nothing stops them overlapping")
+    return out
