@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from skfem_granular.dem import Polygon, overlap_numba
-from skfem_granular.dem.overlap import contact_normals, overlap_geometry
+from skfem_granular.dem.overlap import EPS_PARALLEL, contact_normals, overlap_geometry
 from skfem_granular.dem.particles import pad_outlines
 
 BACKENDS = ["numpy"] + (["numba"] if overlap_numba.AVAILABLE else [])
@@ -94,10 +94,15 @@ polygons = st.builds(
 @given(polygons, polygons)
 def test_overlap_properties(A, B):
     """Symmetric, bounded by the smaller area, zero when bounding circles are apart,
-    centroid inside both, both backends agree."""
+    centroid inside both, both backends agree.
+
+    Edges within EPS_PARALLEL of collinear are snapped to collinear, which moves
+    the area by at most ~EPS_PARALLEL * scale^2: that is the agreement bound for
+    swapped arguments and the two backends (scale ~ 2 here)."""
     g1, g2 = geometry(A, B), geometry(B, A)
     a = g1.area[0]
-    assert a == pytest.approx(g2.area[0], rel=1e-10, abs=1e-14)
+    snap = 10 * EPS_PARALLEL * 2.0**2
+    assert a == pytest.approx(g2.area[0], rel=1e-10, abs=snap)
     areas = [Polygon(A).area, Polygon(B).area]
     assert 0.0 <= a <= min(areas) * (1 + 1e-12)
     cA, cB = Polygon(A).centroid, Polygon(B).centroid
@@ -112,7 +117,7 @@ def test_overlap_properties(A, B):
             assert np.all(e[0] * d[1] - e[1] * d[0] >= -1e-12)
     if overlap_numba.AVAILABLE:
         gn = geometry(A, B, "numba")
-        assert gn.area[0] == pytest.approx(a, rel=1e-10, abs=1e-14)
+        assert gn.area[0] == pytest.approx(a, rel=1e-10, abs=snap)
         if a > 1e-8:
             np.testing.assert_allclose(gn.centroid, g1.centroid, atol=1e-10)
 

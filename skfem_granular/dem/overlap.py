@@ -65,7 +65,9 @@ def _clip_edges(S, C, scale, drop_shared):
     fx, fy = f[:, None, :, 0], f[:, None, :, 1]
     ex, ey = e[:, :, None, 0], e[:, :, None, 1]
     Nn = fx * (a[:, :, None, 1] - b[:, None, :, 1]) - fy * (a[:, :, None, 0] - b[:, None, :, 0])
-    D = fx * ey - fy * ex
+    # D = cross(f, e) written as the change of Nn along the edge (same as the
+    # compiled kernel, so both backends agree to the last bit in degenerate cases)
+    D = np.roll(Nn, -1, axis=1) - Nn
     flen = np.hypot(fx, fy)
     elen = np.hypot(ex, ey)
     tolD = EPS_PARALLEL * flen * elen

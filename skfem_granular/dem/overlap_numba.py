@@ -2,8 +2,13 @@
 
 Same algorithm as :mod:`.overlap` (Cyrus-Beck clipping of every edge against
 the other polygon, Green's theorem, principal axis of the intersection
-points), written as loops over pairs so that numba compiles it. ``AVAILABLE``
-is False when numba is not installed; callers then use the numpy version.
+points), written as loops over pairs so that numba compiles it. The
+vertex-versus-edge-line cross products are computed once per pair
+(``na x nb`` each way) and reused by every edge; pairs whose vertex means are
+separated along the joining line are rejected first. Pairs run serially: a
+``prange`` version was not faster on the shared 2-core machine.
+``AVAILABLE`` is False when numba is not installed; callers then use the
+numpy version.
 """
 
 from __future__ import annotations
@@ -25,30 +30,28 @@ except ImportError:  # pragma: no cover
 __all__ = ["AVAILABLE", "overlap_pairs_numba"]
 
 
-def _clip(S, ns, C, nc, rx, ry, scale, drop_shared, acc, pts, npts):
-    """Clip the edges of S against C; accumulate (2A, Mx, My) into acc."""
+def _clip(S, ns, eS, lS, NS, eC, lC, nc, scale, drop_shared, acc, pts, npts):
+    """Clip the edges of S (shifted vertices) against C; accumulate (2A, Mx, My).
+
+    ``NS[k, m]`` is the cross product of C's edge ``m`` with the vector from
+    C's vertex ``m`` to S's vertex ``k`` (>= 0: inside that half-plane).
+    """
+    m0 = 0
     for k in range(ns):
         k1 = (k + 1) % ns
-        ax = S[k, 0] - rx
-        ay = S[k, 1] - ry
-        ex = S[k1, 0] - S[k, 0]
-        ey = S[k1, 1] - S[k, 1]
-        elen = math.sqrt(ex * ex + ey * ey)
         lo = 0.0
         hi = 1.0
         ok = True
         shared = False
-        for m in range(nc):
-            m1 = (m + 1) % nc
-            bx = C[m, 0] - rx
-            by = C[m, 1] - ry
-            fx = C[m1, 0] - C[m, 0]
-            fy = C[m1, 1] - C[m, 1]
-            flen = math.sqrt(fx * fx + fy * fy)
-            Nn = fx * (ay - by) - fy * (ax - bx)
-            D = fx * ey - fy * ex
-            tolD = EPS_PARALLEL * flen * elen
-            tolN = EPS_PARALLEL * flen * scale
+        for j in range(nc):
+            # start with the half-plane that cut off the previous edge (often
+            # cuts off this one too: early exit)
+            m = m0 + j
+            if m >= nc:
+                m -= nc
+            Nn = NS[k, m]
+            D = NS[k1, m] - Nn
+            tolD = EPS_PARALLEL * lC[m] * lS[k]
             if D > tolD:
                 t = -Nn / D
                 if t > lo:
@@ -58,19 +61,23 @@ def _clip(S, ns, C, nc, rx, ry, scale, drop_shared, acc, pts, npts):
                 if t < hi:
                     hi = t
             else:
+                tolN = EPS_PARALLEL * lC[m] * scale
                 if Nn < -tolN:
                     ok = False
+                    m0 = m
                     break
-                if drop_shared and abs(Nn) <= tolN and fx * ex + fy * ey > 0.0:
+                if (drop_shared and abs(Nn) <= tolN
+                        and eC[m, 0] * eS[k, 0] + eC[m, 1] * eS[k, 1] > 0.0):
                     shared = True
             if lo >= hi:
+                m0 = m
                 break
         if not ok or not hi > lo:
             continue
-        p0x = ax + lo * ex
-        p0y = ay + lo * ey
-        p1x = ax + hi * ex
-        p1y = ay + hi * ey
+        p0x = S[k, 0] + lo * eS[k, 0]
+        p0y = S[k, 1] + lo * eS[k, 1]
+        p1x = S[k, 0] + hi * eS[k, 0]
+        p1y = S[k, 1] + hi * eS[k, 1]
         if not shared:
             cr = p0x * p1y - p0y * p1x
             acc[0] += cr
@@ -87,89 +94,153 @@ def _clip(S, ns, C, nc, rx, ry, scale, drop_shared, acc, pts, npts):
     return npts
 
 
-def _kernel(V, count, I, J, area, cx, cy, ux, uy, length, ncross):
+def _edges(S, n, e, el):
+    for k in range(n):
+        k1 = (k + 1) % n
+        e[k, 0] = S[k1, 0] - S[k, 0]
+        e[k, 1] = S[k1, 1] - S[k, 1]
+        el[k] = math.sqrt(e[k, 0] ** 2 + e[k, 1] ** 2)
+
+
+def _cross_table(S, ns, C, eC, nc, out):
+    """out[k, m] = cross(eC[m], S[k] - C[m])."""
+    for k in range(ns):
+        for m in range(nc):
+            out[k, m] = eC[m, 0] * (S[k, 1] - C[m, 1]) - eC[m, 1] * (S[k, 0] - C[m, 0])
+
+
+def _principal_axis(pts, npts, out, p):
+    """Direction and extent of the points (written to out[p, 3:6])."""
+    mx = 0.0
+    my = 0.0
+    for q in range(npts):
+        mx += pts[q, 0]
+        my += pts[q, 1]
+    mx /= npts
+    my /= npts
+    cxx = 0.0
+    cyy = 0.0
+    cxy = 0.0
+    for q in range(npts):
+        dx = pts[q, 0] - mx
+        dy = pts[q, 1] - my
+        cxx += dx * dx
+        cyy += dy * dy
+        cxy += dx * dy
+    th = 0.5 * math.atan2(2.0 * cxy, cxx - cyy)
+    u0 = math.cos(th)
+    u1 = math.sin(th)
+    pmin = math.inf
+    pmax = -math.inf
+    for q in range(npts):
+        s = (pts[q, 0] - mx) * u0 + (pts[q, 1] - my) * u1
+        pmin = min(pmin, s)
+        pmax = max(pmax, s)
+    out[p, 3] = u0
+    out[p, 4] = u1
+    out[p, 5] = pmax - pmin
+
+
+def _pair(A, na, B, nb, out, p, Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts):
+    """Overlap geometry of one pair, written to ``out[p]``."""
+    rx = 0.0
+    ry = 0.0
+    for k in range(na):
+        rx += A[k, 0]
+        ry += A[k, 1]
+    rx /= na
+    ry /= na
+    bx = 0.0
+    by = 0.0
+    for k in range(nb):
+        bx += B[k, 0]
+        by += B[k, 1]
+    dx = bx / nb - rx
+    dy = by / nb - ry
+    # quick rejection: separating axis along the line joining the vertex means
+    amax = -math.inf
+    for k in range(na):
+        amax = max(amax, A[k, 0] * dx + A[k, 1] * dy)
+    bmin = math.inf
+    for k in range(nb):
+        bmin = min(bmin, B[k, 0] * dx + B[k, 1] * dy)
+    out[p, 1] = rx
+    out[p, 2] = ry
+    out[p, 3] = 1.0
+    out[p, 4] = 0.0
+    out[p, 5] = 0.0
+    out[p, 0] = 0.0
+    out[p, 6] = 0.0
+    if amax < bmin:
+        return
+    xmin = math.inf
+    xmax = -math.inf
+    ymin = math.inf
+    ymax = -math.inf
+    for k in range(na):
+        Sa[k, 0] = A[k, 0] - rx
+        Sa[k, 1] = A[k, 1] - ry
+        xmin = min(xmin, Sa[k, 0])
+        xmax = max(xmax, Sa[k, 0])
+        ymin = min(ymin, Sa[k, 1])
+        ymax = max(ymax, Sa[k, 1])
+    sa = max(xmax - xmin, ymax - ymin)
+    xmin = math.inf
+    xmax = -math.inf
+    ymin = math.inf
+    ymax = -math.inf
+    for k in range(nb):
+        Sb[k, 0] = B[k, 0] - rx
+        Sb[k, 1] = B[k, 1] - ry
+        xmin = min(xmin, Sb[k, 0])
+        xmax = max(xmax, Sb[k, 0])
+        ymin = min(ymin, Sb[k, 1])
+        ymax = max(ymax, Sb[k, 1])
+    scale = max(sa, max(xmax - xmin, ymax - ymin))
+    _edges(Sa, na, ea, la)
+    _edges(Sb, nb, eb, lb)
+    _cross_table(Sa, na, Sb, eb, nb, NA)
+    _cross_table(Sb, nb, Sa, ea, na, NB)
+    acc[0] = 0.0
+    acc[1] = 0.0
+    acc[2] = 0.0
+    npts = _clip(Sa, na, ea, la, NA, eb, lb, nb, scale, False, acc, pts, 0)
+    npts = _clip(Sb, nb, eb, lb, NB, ea, la, na, scale, True, acc, pts, npts)
+    a = 0.5 * acc[0]
+    if a > (EPS * scale) ** 2:
+        out[p, 0] = a
+        out[p, 1] = acc[1] / (3.0 * acc[0]) + rx
+        out[p, 2] = acc[2] / (3.0 * acc[0]) + ry
+    out[p, 6] = npts
+    if npts >= 2:
+        _principal_axis(pts, npts, out, p)
+
+
+def _kernel(V, count, I, J, out):
+    """out[p] = (area, cx, cy, ux, uy, length, ncross) for every pair p."""
     nmax = V.shape[1]
-    pts = np.empty((4 * nmax + 4, 2))
+    Sa = np.empty((nmax, 2))  # scratch arrays, allocated once
+    Sb = np.empty((nmax, 2))
+    ea = np.empty((nmax, 2))
+    eb = np.empty((nmax, 2))
+    la = np.empty(nmax)
+    lb = np.empty(nmax)
+    NA = np.empty((nmax, nmax))
+    NB = np.empty((nmax, nmax))
     acc = np.empty(3)
+    pts = np.empty((4 * nmax + 4, 2))
     for p in range(I.shape[0]):
-        A = V[I[p]]
-        B = V[J[p]]
-        na = count[I[p]]
-        nb = count[J[p]]
-        rx = 0.0
-        ry = 0.0
-        for k in range(na):
-            rx += A[k, 0]
-            ry += A[k, 1]
-        rx /= na
-        ry /= na
-        xmin = xmax = A[0, 0]
-        ymin = ymax = A[0, 1]
-        for k in range(na):
-            xmin = min(xmin, A[k, 0])
-            xmax = max(xmax, A[k, 0])
-            ymin = min(ymin, A[k, 1])
-            ymax = max(ymax, A[k, 1])
-        sa = max(xmax - xmin, ymax - ymin)
-        xmin = xmax = B[0, 0]
-        ymin = ymax = B[0, 1]
-        for k in range(nb):
-            xmin = min(xmin, B[k, 0])
-            xmax = max(xmax, B[k, 0])
-            ymin = min(ymin, B[k, 1])
-            ymax = max(ymax, B[k, 1])
-        scale = max(sa, max(xmax - xmin, ymax - ymin))
-        acc[:] = 0.0
-        npts = _clip(A, na, B, nb, rx, ry, scale, False, acc, pts, 0)
-        npts = _clip(B, nb, A, na, rx, ry, scale, True, acc, pts, npts)
-        a = 0.5 * acc[0]
-        if a > (EPS * scale) ** 2:
-            area[p] = a
-            cx[p] = acc[1] / (3.0 * acc[0]) + rx
-            cy[p] = acc[2] / (3.0 * acc[0]) + ry
-        else:
-            area[p] = 0.0
-            cx[p] = rx
-            cy[p] = ry
-        ncross[p] = npts
-        if npts >= 2:
-            mx = 0.0
-            my = 0.0
-            for q in range(npts):
-                mx += pts[q, 0]
-                my += pts[q, 1]
-            mx /= npts
-            my /= npts
-            cxx = 0.0
-            cyy = 0.0
-            cxy = 0.0
-            for q in range(npts):
-                dx = pts[q, 0] - mx
-                dy = pts[q, 1] - my
-                cxx += dx * dx
-                cyy += dy * dy
-                cxy += dx * dy
-            th = 0.5 * math.atan2(2.0 * cxy, cxx - cyy)
-            u0 = math.cos(th)
-            u1 = math.sin(th)
-            pmin = math.inf
-            pmax = -math.inf
-            for q in range(npts):
-                s = (pts[q, 0] - mx) * u0 + (pts[q, 1] - my) * u1
-                pmin = min(pmin, s)
-                pmax = max(pmax, s)
-            ux[p] = u0
-            uy[p] = u1
-            length[p] = pmax - pmin
-        else:
-            ux[p] = 1.0
-            uy[p] = 0.0
-            length[p] = 0.0
+        _pair(V[I[p]], count[I[p]], V[J[p]], count[J[p]], out, p,
+              Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts)
 
 
 if AVAILABLE:  # pragma: no branch
-    _clip = numba.njit(cache=True, fastmath=False)(_clip)
-    _kernel = numba.njit(cache=True, fastmath=False)(_kernel)
+    _clip = numba.njit(cache=True)(_clip)
+    _edges = numba.njit(cache=True)(_edges)
+    _cross_table = numba.njit(cache=True)(_cross_table)
+    _principal_axis = numba.njit(cache=True)(_principal_axis)
+    _pair = numba.njit(cache=True)(_pair)
+    _kernel = numba.njit(cache=True)(_kernel)
 
 
 def overlap_pairs_numba(V: np.ndarray, count: np.ndarray, I: np.ndarray, J: np.ndarray):
@@ -188,8 +259,7 @@ def overlap_pairs_numba(V: np.ndarray, count: np.ndarray, I: np.ndarray, J: np.n
     -------
     OverlapGeometry
     """
-    P = I.shape[0]
-    area, cx, cy, ux, uy, length = (np.empty(P) for _ in range(6))
-    ncross = np.empty(P, dtype=np.int64)
-    _kernel(np.ascontiguousarray(V), count, I, J, area, cx, cy, ux, uy, length, ncross)
-    return OverlapGeometry(area, np.vstack([cx, cy]), np.vstack([ux, uy]), length, ncross)
+    out = np.empty((I.shape[0], 7))
+    _kernel(np.ascontiguousarray(V), count, I, J, out)
+    return OverlapGeometry(out[:, 0].copy(), out[:, 1:3].T.copy(), out[:, 3:5].T.copy(),
+                           out[:, 5].copy(), out[:, 6].astype(np.int64))
