@@ -20,13 +20,24 @@ import numpy as np
 
 def _check_writable(path: Path) -> None:
     parent = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise ValueError(f"output path {str(path)!r}: is a directory")
     if not parent.exists():
         try:
             parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise ValueError(f"output path {str(path)!r}: cannot create directory ({exc.strerror})") from None
+            raise ValueError(f"output path {str(path)!r}: cannot create directory "
+                             f"({exc.strerror})") from None
+    if not parent.is_dir():
+        raise ValueError(f"output path {str(path)!r}: {str(parent)!r} is not a directory")
     if not os.access(parent, os.W_OK):
         raise ValueError(f"output path {str(path)!r}: directory {str(parent)!r} is not writable")
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def atomic_write(path, write) -> Path:
@@ -41,10 +52,15 @@ def atomic_write(path, write) -> Path:
     """
     path = Path(path)
     _check_writable(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent or ".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
+    except OSError as exc:
+        raise ValueError(f"output path {str(path)!r}: cannot write ({exc.strerror})") from None
     os.close(fd)
     try:
         write(tmp)
+        # mkstemp makes the file private (0600); give it the usual permissions
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
@@ -109,10 +125,21 @@ class PVDSeries:
         return False
 
     def write(self, t: float, save) -> Path:
-        """Write frame at time ``t``: ``save(vtu_path)`` writes the VTU file."""
+        """Write frame at time ``t``: ``save(vtu_path)`` writes the VTU file.
+
+        ``save`` writes to a temporary name that is renamed onto the frame's
+        file only when it returns, so an exception inside ``save`` leaves
+        the earlier frames and the index as they were.
+        """
+        try:
+            t = float(t)
+        except (TypeError, ValueError):
+            raise ValueError(f"t = {t!r}: must be a finite number") from None
+        if not np.isfinite(t):
+            raise ValueError(f"t = {t!r}: must be a finite number")
         name = f"{self.path.stem}_{len(self.frames):05d}.vtu"
         atomic_write(self.path.parent / name, save)
-        self.frames.append((float(t), name))
+        self.frames.append((t, name))
         self._write_index()
         return self.path.parent / name
 

@@ -42,10 +42,17 @@ class RigidMotion:
     center: tuple = (0.0, 0.0)
 
     def __post_init__(self):
-        object.__setattr__(self, "velocity", tuple(finite_vector("RigidMotion.velocity", self.velocity)))
-        object.__setattr__(self, "center", tuple(finite_vector("RigidMotion.center", self.center)))
-        if not np.isfinite(float(self.omega)):
-            raise ValueError(f"RigidMotion.omega = {self.omega!r}: must be finite")
+        for attr in ("velocity", "center"):
+            v = finite_vector(f"RigidMotion.{attr}", getattr(self, attr))
+            object.__setattr__(self, attr, (float(v[0]), float(v[1])))
+        omega = np.asarray(self.omega, dtype=object)
+        try:
+            value = float(omega) if omega.ndim == 0 else np.nan
+        except (TypeError, ValueError):
+            value = np.nan
+        if not np.isfinite(value) or isinstance(self.omega, bool | str):
+            raise ValueError(f"RigidMotion.omega = {self.omega!r}: must be a finite number")
+        object.__setattr__(self, "omega", value)
 
     def __call__(self, x, y):
         """Velocity at the points ``(x, y)``."""
@@ -74,12 +81,20 @@ def evaluate(spec, x: np.ndarray, y: np.ndarray, t: float | None, name: str) -> 
             val = spec(*args)
         except Exception as exc:  # user code: say where it came from
             raise ValueError(f"velocity[{name!r}]: the boundary function raised {exc!r}") from exc
-        ux, uy = val
+        try:
+            ux, uy = val
+        except (TypeError, ValueError):
+            raise ValueError(f"velocity[{name!r}]: the boundary function must return two "
+                             f"components (u, v), got {type(val).__name__}") from None
     else:
         ux, uy = finite_vector(f"velocity[{name!r}]", spec)
     out = np.empty((2, n))
-    out[0] = np.broadcast_to(np.asarray(ux, dtype=float), (n,))
-    out[1] = np.broadcast_to(np.asarray(uy, dtype=float), (n,))
+    try:
+        out[0] = np.broadcast_to(np.asarray(ux, dtype=float), (n,))
+        out[1] = np.broadcast_to(np.asarray(uy, dtype=float), (n,))
+    except (TypeError, ValueError):
+        raise ValueError(f"velocity[{name!r}]: each component must be a number or an array "
+                         f"of {n} values (one per boundary node)") from None
     if not np.all(np.isfinite(out)):
         raise ValueError(f"velocity[{name!r}]: boundary values contain NaN or inf")
     return out

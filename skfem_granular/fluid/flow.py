@@ -146,6 +146,14 @@ class Flow:
         u = np.vstack([self.u[0::2], self.u[1::2]])
         # P1 pressure at P2 nodes (edge midpoints: mean of the end points)
         p = sp_.p1_to_p2 @ self.p
-        write_vtu(path, sb.doflocs, {"triangle6": sb.element_dofs.T},
+        # skfem sorts the vertices of each element; VTK wants them counter-clockwise
+        # (normal +z), with nodes 3, 4, 5 on the edges 01, 12, 20
+        cells = sb.element_dofs.T.copy()
+        x = sb.doflocs
+        e1 = x[:, cells[:, 1]] - x[:, cells[:, 0]]
+        e2 = x[:, cells[:, 2]] - x[:, cells[:, 0]]
+        cw = e1[0] * e2[1] - e1[1] * e2[0] < 0
+        cells[cw] = cells[cw][:, [0, 2, 1, 5, 4, 3]]
+        write_vtu(path, sb.doflocs, {"triangle6": cells},
                   point_data={"velocity": u, "pressure": p, "speed": np.hypot(*u),
                               "vorticity": self.vorticity()})

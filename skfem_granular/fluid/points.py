@@ -5,8 +5,11 @@ polygonal hole and is slow for many points. :class:`PointLocator` finds the
 containing triangle with a k-d tree on element centroids and a vectorised
 barycentric test; points slightly outside the mesh (within ``tol`` times the
 local element size) are snapped to the nearest element, points farther out
-raise a clear error. The evaluation matrix is built from the element's own
-reference basis functions (``elem.lbasis``), as ``probes`` does.
+raise a clear error. Points that none of the nearest elements (by centroid)
+contains, as happens in a large element next to many small ones, are tested
+against every element before they count as outside. The evaluation matrix
+is built from the element's own reference basis functions (``elem.lbasis``),
+as ``probes`` does.
 """
 
 from __future__ import annotations
@@ -86,6 +89,16 @@ class PointLocator:
             cells[todo[inside]] = cand[rows[inside], j[inside]]
         missing = np.flatnonzero(cells < 0)
         if missing.size:
+            # not in any of the nearest elements by centroid (a large element
+            # next to many small ones, or outside): test every element
+            c_all, ref_all, lam_all = self._search_all(x[:, missing])
+            better = lam_all > best[missing]
+            upd = missing[better]
+            best[upd], nearest[upd], X[:, upd] = lam_all[better], c_all[better], ref_all[:, better]
+            found = missing[best[missing] >= -1e-12]
+            cells[found] = nearest[found]
+            missing = np.flatnonzero(cells < 0)
+        if missing.size:
             ok = -best[missing] <= tol
             if not np.all(ok):
                 i = missing[~ok][0]
@@ -98,6 +111,23 @@ class PointLocator:
             r[:, over] /= s[over]
             X[:, missing] = r
         return cells, X
+
+    def _search_all(self, x: np.ndarray, chunk_entries: int = 2_000_000):
+        """Element of largest smallest barycentric coordinate for each point (all elements)."""
+        nel = self._p0.shape[1]
+        n = x.shape[1]
+        cells, X, lam_best = np.zeros(n, dtype=np.int64), np.zeros((2, n)), np.zeros(n)
+        m = max(1, chunk_entries // max(nel, 1))
+        for s0 in range(0, n, m):
+            d = x[:, s0:s0 + m, None] - self._p0[:, None, :]  # (2, m, nel)
+            ref = np.einsum("ijk,jmk->imk", self._inv, d)
+            lam = np.minimum(np.minimum(ref[0], ref[1]), 1.0 - ref[0] - ref[1])
+            j = np.argmax(lam, axis=1)
+            rows = np.arange(d.shape[1])
+            cells[s0:s0 + m] = j
+            X[:, s0:s0 + m] = ref[:, rows, j]
+            lam_best[s0:s0 + m] = lam[rows, j]
+        return cells, X, lam_best
 
 
 def evaluation_matrix(basis, cells: np.ndarray, X: np.ndarray) -> sp.csr_matrix:
