@@ -28,7 +28,7 @@ class History:
         """Add one step; ``particle`` holds ``(K,)`` arrays named as :data:`PARTICLE_COLUMNS`."""
         row = {"t": t, "dt": dt, "iterations": iterations}
         for c in PARTICLE_COLUMNS:
-            row[c] = np.asarray(particle.get(c, np.zeros(self.K)), dtype=float).reshape(self.K)
+            row[c] = np.array(particle.get(c, np.zeros(self.K)), dtype=float).reshape(self.K)
         self.rows.append(row)
 
     def __len__(self):

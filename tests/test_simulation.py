@@ -1,0 +1,166 @@
+"""Scene -> Simulation: the paper's single particle, effects, bad input, CLI."""
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from skfem_granular.cli import main
+from skfem_granular.scene import Effects, Scene, TimeSpec
+from skfem_granular.simulation import Simulation
+
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+
+
+def _short(scene, t_end=1e-4, **kw):
+    return replace(scene, time=TimeSpec(t_end=t_end, dt=scene.time.dt), **kw)
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return Scene.from_toml(SCENES / "single_particle.toml")
+
+
+def test_single_particle_sinks_with_effects_listed(paper, tmp_path):
+    res = Simulation(_short(paper), output_dir=tmp_path).run(progress=False)
+    s = res.summary
+    assert s["effects"] == {"fluid": True, "gravity": True, "convection": True,
+                            "contacts": False, "rotation": True, "remeshing": True}
+    h = res.history
+    assert len(h) == 10 and h.t[-1] == pytest.approx(1e-4)
+    # early times: the particle accelerates downwards at less than the added-mass limit
+    rho_p, rho_f = 2650.0, 1000.0
+    a_limit = 9.81 * (rho_p - rho_f) / (rho_p + rho_f)  # C_a = 1, unbounded fluid
+    assert np.all(h.vy[:, 0] < 0) and np.all(np.diff(h.vy[:, 0]) < 0)
+    assert 0 < -h.ay[0, 0] < a_limit * 1.05
+    # momentum balance of the particle: m a = F_fluid + (m - rho_f A) g
+    area = np.pi * 0.5e-3**2 * (24 / (2 * np.pi)) * np.sin(2 * np.pi / 24)
+    m = rho_p * area
+    np.testing.assert_allclose(m * h.ay[1:, 0], h.Fy[1:, 0] - (m - rho_f * area) * 9.81,
+                               rtol=1e-8)
+    # output: VTU series, history and summary
+    assert (tmp_path / "flow.pvd").exists() and (tmp_path / "particles.pvd").exists()
+    assert json.loads((tmp_path / "summary.json").read_text())["steps"] == 10
+    table = np.loadtxt(tmp_path / "history.csv", delimiter=",", skiprows=1)
+    assert table.shape[0] == 10
+
+
+def test_symmetric_mesh_keeps_horizontal_motion_at_round_off(paper):
+    """VALIDATION.md case 8 on the mirror-symmetric graded mesh: drift is rounding alone."""
+    h = Simulation(_short(paper)).run(progress=False).history
+    assert np.abs(h.vx).max() < 1e-13 * np.abs(h.vy).max()
+    assert np.abs(h.x[:, 0] - 1.5e-3).max() < 1e-15
+
+
+def test_graded_and_uniform_agree_early(paper):
+    g = Simulation(_short(paper, t_end=5e-5)).run(progress=False).history
+    u = Simulation(_short(paper, t_end=5e-5).with_mesh("uniform")).run(progress=False).history
+    np.testing.assert_allclose(g.vy[:, 0], u.vy[:, 0], rtol=0.02)
+
+
+def test_neutrally_buoyant_particle_stays_at_rest(paper):
+    p = replace(paper.particles[0], density=1000.0)
+    res = Simulation(_short(replace(paper, particles=(p,)))).run(progress=False)
+    h = res.history
+    # weight and buoyancy cancel up to round-off (mass from the DEM, volume from the core
+    # outline: 2e-16 g measured), so the particle gains at most round-off speed
+    assert np.abs(h.vy[:, 0]).max() < 1e-14 * 9.81 * h.t[-1]
+    assert np.abs(h.vx).max() < 1e-14 * 9.81 * h.t[-1]
+
+
+def test_dry_scene_builds_no_mesh(paper):
+    dry = replace(_short(paper, t_end=1e-3), fluid=None)
+    sim = Simulation(dry)
+    assert not hasattr(sim, "mesh")
+    h = sim.run(progress=False).history
+    assert h.vy[-1, 0] == pytest.approx(-9.81 * 1e-3, rel=1e-9)  # free fall
+
+
+def test_stokes_scene_uses_one_factorisation(paper):
+    sc = _short(paper, effects=Effects(convection=False))
+    sim = Simulation(sc)
+    res = sim.run(progress=False)
+    assert sim.coupling.solver.stats.factorizations == 2  # backward Euler, then BDF2
+    assert np.all(res.history.iterations == 1)
+
+
+def test_warning_when_convection_off_at_high_reynolds(paper):
+    sc = _short(paper, t_end=0.05, effects=Effects(convection=False))
+    sc = replace(sc, time=TimeSpec(t_end=0.05, dt=1e-3))
+    warnings = Simulation(sc).warnings
+    assert any("Reynolds" in w for w in warnings)
+
+
+def test_remeshing_keeps_velocity_continuous(paper):
+    p = replace(paper.particles[0], velocity=(0.0, -0.05))
+    sc = replace(paper, particles=(p,), time=TimeSpec(t_end=2e-3, dt=1e-4),
+                 effects=Effects(gravity=False), remesh_fraction=0.1)
+    sim = Simulation(sc)
+    h = sim.run(progress=False).history
+    assert sim.remeshes >= 2
+    # a decelerating particle: the speed falls smoothly, without jumps at remeshes
+    dv = np.diff(h.vy[:, 0])
+    assert np.all(dv > 0)
+    assert np.abs(np.diff(dv[1:])).max() < 0.5 * np.abs(dv[1:]).max()
+
+
+BAD = [
+    ({"time": {"dt": -1.0}}, "time.dt"),
+    ({"time": {"t_end": float("nan")}}, "time.t_end"),
+    ({"time": {"t_end": 1e-3, "dt": 1e-2}}, "time.dt"),
+    ({"fluid": {"density": 0.0, "viscosity": 1e-3}}, "fluid.density"),
+    ({"fluid": {"density": 1000.0, "viscosity": -1.0}}, "fluid.viscosity"),
+    ({"effects": {"convection": "yes"}}, "effects.convection"),
+    ({"effects": {"warp": True}}, "unknown key 'warp'"),
+    ({"mesh": {"kind": "hex"}}, "mesh.kind"),
+    ({"mesh": {"kind": "graded", "sigma": 0.9}}, "mesh.sigma"),
+    ({"coupling": {"scheme": "magic"}}, "coupling.scheme"),
+    ({"domain": {"box": [0, 0, -1, 1]}}, "domain.box"),
+    ({"nonsense": {}}, "unknown key 'nonsense'"),
+]
+
+
+@pytest.mark.parametrize("patch,field", BAD)
+def test_bad_scene_values_name_the_field(paper, patch, field):
+    base = {"domain": {"box": [0.0, 0.0, 3e-3, 11e-3]},
+            "fluid": {"density": 1000.0, "viscosity": 1e-3},
+            "particles": [{"sides": 24, "radius": 0.5e-3, "center": [1.5e-3, 5.5e-3],
+                           "density": 2650.0}]}
+    base.update(patch)
+    with pytest.raises(ValueError, match=field.replace(".", r"\.")):
+        Scene.from_dict(base)
+
+
+def test_particle_outside_domain(paper):
+    data = {"domain": {"box": [0.0, 0.0, 3e-3, 11e-3]},
+            "particles": [{"sides": 6, "radius": 1e-3, "center": [0.5e-3, 5e-3], "density": 2650.0}]}
+    with pytest.raises(ValueError, match=r"particles\[0\]"):
+        Scene.from_dict(data)
+
+
+def test_cli_bad_input_exit_code(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[domain]\nbox = [0, 0, 1, 1]\n[time]\ndt = -1\n')
+    assert main(["run", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "time.dt" in err[0]
+
+
+def test_cli_runs_scene(tmp_path, capsys):
+    code = main(["run", str(SCENES / "single_particle.toml"), "--out", str(tmp_path),
+                 "--t-end", "3e-5", "--no-progress"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "734 P2 nodes" in out and "vy =" in out
+    assert (tmp_path / "history.csv").exists()
+
+
+@pytest.mark.slow
+def test_paper_single_particle_fine_vs_graded(paper):
+    """Paper Section 6, full 1 ms: vertical velocity curves within 2 % of each other."""
+    g = Simulation(paper).run(progress=False)
+    u = Simulation(paper.with_mesh("uniform")).run(progress=False)
+    vg, vu = g.history.vy[:, 0], u.history.vy[:, 0]
+    assert np.abs(vg - vu).max() < 0.02 * np.abs(vu).max()
