@@ -71,8 +71,12 @@ def _arity(fn: Callable) -> int:
 
 
 def evaluate(spec, x: np.ndarray, y: np.ndarray, t: float | None, name: str) -> np.ndarray:
-    """Evaluate one boundary condition at points; returns ``(2, n)``."""
+    """Evaluate one boundary condition at points; returns ``(2, n)``.
+
+    ``name`` is the boundary's name (``"body_force"`` for the body force).
+    """
     n = x.size
+    label = name if name == "body_force" else f"velocity[{name!r}]"
     if isinstance(spec, RigidMotion):
         ux, uy = spec(x, y)
     elif callable(spec):
@@ -80,23 +84,23 @@ def evaluate(spec, x: np.ndarray, y: np.ndarray, t: float | None, name: str) -> 
         try:
             val = spec(*args)
         except Exception as exc:  # user code: say where it came from
-            raise ValueError(f"velocity[{name!r}]: the boundary function raised {exc!r}") from exc
+            raise ValueError(f"{label}: the function raised {exc!r}") from exc
         try:
             ux, uy = val
         except (TypeError, ValueError):
-            raise ValueError(f"velocity[{name!r}]: the boundary function must return two "
+            raise ValueError(f"{label}: the function must return two "
                              f"components (u, v), got {type(val).__name__}") from None
     else:
-        ux, uy = finite_vector(f"velocity[{name!r}]", spec)
+        ux, uy = finite_vector(label, spec)
     out = np.empty((2, n))
     try:
         out[0] = np.broadcast_to(np.asarray(ux, dtype=float), (n,))
         out[1] = np.broadcast_to(np.asarray(uy, dtype=float), (n,))
     except (TypeError, ValueError):
-        raise ValueError(f"velocity[{name!r}]: each component must be a number or an array "
-                         f"of {n} values (one per boundary node)") from None
+        raise ValueError(f"{label}: each component must be a number or an array "
+                         f"of {n} values (one per point)") from None
     if not np.all(np.isfinite(out)):
-        raise ValueError(f"velocity[{name!r}]: boundary values contain NaN or inf")
+        raise ValueError(f"{label}: values contain NaN or inf")
     return out
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from .._validate import points_array
+from .._validate import points_array, positive
 
 
 class PointLocator:
@@ -61,6 +61,7 @@ class PointLocator:
             Reference coordinates (clamped to the element for snapped points).
         """
         x = points_array(name, points)
+        tol = positive("tol", tol, allow_zero=True)
         n = x.shape[1]
         nel = self._p0.shape[1]
         cells = np.full(n, -1)

@@ -1,0 +1,320 @@
+"""Linear solvers agree, bad input is refused clearly, mirror symmetry holds to round-off.
+
+References: VALIDATION.md case 1 (concentric-cylinder drag) for the solver
+comparison, case 8 (symmetry) for the mirrored mesh.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+import triangle
+from helpers import annulus, box, regular_polygon
+from scipy.spatial import cKDTree
+from skfem import MeshQuad, MeshTri
+
+import skfem_granular as sg
+from skfem_granular.fluid.linsolve import (
+    AUTO_KRYLOV_SIZE,
+    KrylovSolver,
+    SuperLUSolver,
+    make_solver,
+)
+
+EPS = np.finfo(float).eps
+
+
+def drag_concentric(a, b, mu, U):
+    """VALIDATION.md case 1: F = -4 pi mu U / (ln(b/a) - (b^2 - a^2)/(b^2 + a^2))."""
+    return -4 * np.pi * mu * U / (np.log(b / a) - (b**2 - a**2) / (b**2 + a**2))
+
+
+# linear solvers ----------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def drag_solves():
+    """The annulus drag case (a = 1, b = 2, 64/128 segments, ~10k unknowns) with both solvers."""
+    space = sg.TaylorHood(annulus(1.0, 2.0, 64, 128, 25.0 / 64**2))
+    fluid = sg.Fluid(1.0, 1.0)
+    bc = {"inner": (1.0, 0.0), "outer": (0.0, 0.0)}
+    return {name: sg.solve_steady(space, fluid, bc, solver=name) for name in ("superlu", "krylov")}
+
+
+def test_superlu_and_krylov_give_the_same_stokes_solution(drag_solves):
+    lu, kr = drag_solves["superlu"], drag_solves["krylov"]
+    assert kr.space.N > 10_000
+    # FGMRES stops at 1e-10 relative residual; measured differences 2.7e-11 (u), 5.0e-11 (p)
+    assert np.linalg.norm(kr.u - lu.u) < 1e-8 * np.linalg.norm(lu.u)
+    assert np.linalg.norm(kr.p - lu.p) < 1e-8 * np.linalg.norm(lu.p)
+    F = drag_concentric(1.0, 2.0, 1.0, 1.0)
+    for method in ("consistent", "traction"):
+        f_lu, f_kr = lu.force("inner", method), kr.force("inner", method)
+        assert abs(f_kr[0] - f_lu[0]) < 1e-8 * abs(F)
+        assert abs(f_lu[0] / F - 1) < 5e-3  # the discretisation error dwarfs the solver's
+    # statistics: SuperLU has no Krylov iterations, FGMRES one count per solve
+    assert lu.report.solver["name"] == "superlu"
+    assert lu.report.solver["krylov_iterations"] == []
+    its = kr.report.solver["krylov_iterations"]
+    assert kr.report.solver["name"] == "krylov" and len(its) == 1
+    # measured 36 (one V-cycle and a lumped pressure mass needed 208)
+    assert 0 < its[0] <= 60
+    assert kr.report.residuals[0] < 1e-9
+
+
+def test_krylov_unsteady_stokes_matches_superlu():
+    """BDF2 steps use the Cahouet-Chabard Schur approximation (a0 rho Lp^-1 term)."""
+    mesh = annulus(1.0, 2.0, 16, 32, 0.02)
+    bc = {"inner": (1.0, 0.0), "outer": (0.0, 0.0)}
+    out = {}
+    for solver in ("superlu", "krylov"):
+        *_, (t, flow) = sg.evolve(mesh, sg.Fluid(1.0, 0.1), bc, dt=0.05, t_end=0.15,
+                                  convection=False, solver=solver)
+        out[solver] = flow
+    assert t == pytest.approx(0.15)
+    lu, kr = out["superlu"], out["krylov"]
+    assert np.linalg.norm(kr.u - lu.u) < 1e-8 * np.linalg.norm(lu.u)
+    assert np.linalg.norm(kr.x - lu.x) < 1e-8 * np.linalg.norm(lu.x)
+
+
+def test_krylov_on_a_system_smaller_than_maxiter():
+    """pyamg warns when maxiter exceeds the system size (and forces its warnings to 'always')."""
+    mesh = annulus(1.0, 2.0, 6, 8, 1.0)
+    bc = {"inner": (0.0, 1.0), "outer": (0.0, 0.0)}
+    lu = sg.solve_steady(mesh, sg.Fluid(1.0, 1.0), bc, solver="superlu")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        kr = sg.solve_steady(mesh, sg.Fluid(1.0, 1.0), bc, solver="krylov")
+    assert [str(w.message) for w in caught] == []
+    assert lu.space.N < KrylovSolver().maxiter
+    np.testing.assert_allclose(kr.x, lu.x, rtol=0, atol=1e-8 * np.abs(lu.x).max())
+
+
+def test_krylov_iteration_limit_raises(drag_solves):
+    space = drag_solves["krylov"].space
+    bc = {"inner": (1.0, 0.0), "outer": (0.0, 0.0)}
+    with pytest.raises(sg.ConvergenceError, match="after 3 iterations"):
+        sg.solve_steady(space, sg.Fluid(1.0, 1.0), bc, solver=KrylovSolver(maxiter=3))
+
+
+def test_make_solver_choices():
+    assert make_solver("auto", 1000).name == "superlu"
+    assert make_solver("auto", AUTO_KRYLOV_SIZE).name == "superlu"
+    assert make_solver("auto", AUTO_KRYLOV_SIZE + 1).name == "krylov"
+    assert make_solver("krylov").name == "krylov"
+    own = SuperLUSolver(delta=0.0)
+    assert make_solver(own) is own
+    for bad in ("nope", "SuperLU", 3, None, ["krylov"]):
+        with pytest.raises(ValueError, match="'auto', 'superlu', 'pardiso', 'krylov'"):
+            make_solver(bad)
+    with pytest.raises(ValueError, match="solver = 'nope'"):
+        sg.solve_steady(annulus(1.0, 2.0, 6, 8, 1.0), sg.Fluid(), {"inner": (0, 0)}, solver="nope")
+    for kw in (dict(rtol=-1.0), dict(rtol=float("nan")), dict(maxiter=0), dict(restart=0)):
+        with pytest.raises(ValueError):
+            KrylovSolver(**kw)
+
+
+def test_pardiso_is_optional():
+    try:
+        import pypardiso  # noqa: F401
+    except ImportError:
+        with pytest.raises(ValueError, match="pypardiso"):
+            make_solver("pardiso")
+    else:
+        mesh = annulus(1.0, 2.0, 16, 32, 0.02)
+        bc = {"inner": (1.0, 0.0), "outer": (0.0, 0.0)}
+        a = sg.solve_steady(mesh, sg.Fluid(), bc, solver="superlu")
+        b = sg.solve_steady(mesh, sg.Fluid(), bc, solver="pardiso")
+        assert np.linalg.norm(a.x - b.x) < 1e-10 * np.linalg.norm(a.x)
+
+
+# bad input ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def small():
+    mesh = annulus(1.0, 2.0, 8, 16, 0.2)
+    flow = sg.solve_steady(mesh, sg.Fluid(), {"inner": (1.0, 0.0), "outer": (0.0, 0.0)})
+    return mesh, flow
+
+
+def test_unknown_boundary_lists_the_available_names(small):
+    mesh, flow = small
+    with pytest.raises(ValueError, match=r"velocity\['wall'\]: no such boundary.*'outer', 'inner'"):
+        sg.solve_steady(mesh, sg.Fluid(), {"inner": (1, 0), "wall": (0, 0)})
+    with pytest.raises(ValueError, match=r"boundary\['particle0'\].*'outer', 'inner'"):
+        flow.force("particle0")
+    with pytest.raises(ValueError, match="must be a mapping"):
+        sg.solve_steady(mesh, sg.Fluid(), [("inner", (1, 0))])
+
+
+@pytest.mark.parametrize("spec, match", [
+    ((np.nan, 0.0), "must be 2 finite numbers"),
+    ((1.0, np.inf), "must be 2 finite numbers"),
+    ((1.0, 2.0, 3.0), "must be 2 finite numbers"),
+    ("fast", "must be 2 finite numbers"),
+    (None, "must be 2 finite numbers"),
+    (lambda x, y: (np.log(x - x), y), "NaN or inf"),
+    (lambda x, y: (x, y, x), "must return two components"),
+    (lambda x, y: 1.0, "must return two components"),
+    (lambda x, y: (x[:2], y), "array of 32 values"),
+    (lambda x, y: 1 / 0, "raised ZeroDivisionError"),
+])
+def test_bad_boundary_values(small, spec, match):
+    mesh, _ = small
+    with np.errstate(divide="ignore"), pytest.raises(ValueError, match=r"^velocity\['inner'\]"):
+        sg.solve_steady(mesh, sg.Fluid(), {"inner": spec, "outer": (0, 0)})
+    with np.errstate(divide="ignore"), pytest.raises(ValueError, match=match):
+        sg.solve_steady(mesh, sg.Fluid(), {"inner": spec, "outer": (0, 0)})
+
+
+def test_bad_body_force_is_named(small):
+    mesh, _ = small
+    with pytest.raises(ValueError, match=r"^body_force"):
+        sg.solve_steady(mesh, sg.Fluid(), {"inner": (0, 0)}, body_force=(np.nan, 0.0))
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(density=0.0), "Fluid.density = 0.0"),
+    (dict(density=-1000.0), "Fluid.density = -1000.0"),
+    (dict(density=np.inf), "Fluid.density = inf"),
+    (dict(viscosity=np.nan), "Fluid.viscosity = nan"),
+    (dict(viscosity=0.0), "Fluid.viscosity = 0.0"),
+    (dict(viscosity="water"), "Fluid.viscosity = 'water'"),
+    (dict(viscosity=None), "Fluid.viscosity = None"),
+])
+def test_bad_fluid(kw, match):
+    with pytest.raises(ValueError, match=match):
+        sg.Fluid(**kw)
+
+
+@pytest.mark.parametrize("mesh", [np.zeros((2, 3)), None, "mesh.msh", MeshQuad()],
+                         ids=["array", "None", "str", "MeshQuad"])
+def test_non_mesh_is_refused_by_every_entry_point(mesh):
+    bc = {"inner": (0.0, 0.0)}
+    with pytest.raises(ValueError, match="mesh: a skfem.MeshTri is required"):
+        sg.TaylorHood(mesh)
+    with pytest.raises(ValueError, match="mesh: a skfem.MeshTri is required"):
+        sg.solve_steady(mesh, sg.Fluid(), bc)
+    with pytest.raises(ValueError, match="mesh: a skfem.MeshTri is required"):
+        sg.BDF2Integrator(mesh, sg.Fluid(), bc)
+    with pytest.raises(ValueError, match="mesh: a skfem.MeshTri is required"):
+        next(sg.evolve(mesh, sg.Fluid(), bc, dt=0.1, t_end=1.0))
+
+
+def test_non_fluid_is_refused(small):
+    mesh, _ = small
+    with pytest.raises(ValueError, match="fluid: a skfem_granular.Fluid is required, got tuple"):
+        sg.solve_steady(mesh, (1000.0, 1e-3), {"inner": (0, 0)})
+
+
+@pytest.mark.parametrize("method", ["stress", "Traction", None, ""])
+def test_bad_force_method(small, method):
+    _, flow = small
+    with pytest.raises(ValueError, match="must be 'consistent' or 'traction'"):
+        flow.force("inner", method=method)
+    with pytest.raises(ValueError, match="must be 'consistent' or 'traction'"):
+        flow.torque("inner", method=method)
+
+
+def test_bad_torque_center(small):
+    _, flow = small
+    for center in ((np.nan, 0.0), (0.0, 0.0, 0.0), "origin"):
+        with pytest.raises(ValueError, match="center"):
+            flow.torque("inner", center=center)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(velocity=(1.0, 2.0, 3.0)), "RigidMotion.velocity"),
+    (dict(velocity=(np.nan, 0.0)), "RigidMotion.velocity"),
+    (dict(velocity="up"), "RigidMotion.velocity"),
+    (dict(center=(0.0,)), "RigidMotion.center"),
+    (dict(center=(0.0, np.inf)), "RigidMotion.center"),
+    (dict(omega=np.nan), "RigidMotion.omega = nan"),
+    (dict(omega=None), "RigidMotion.omega = None"),
+    (dict(omega="fast"), "RigidMotion.omega = 'fast'"),
+    (dict(omega=[1.0, 2.0]), r"RigidMotion.omega = \[1.0, 2.0\]"),
+])
+def test_malformed_rigid_motion(kw, match):
+    with pytest.raises(ValueError, match=match):
+        sg.RigidMotion(**kw)
+
+
+def test_rigid_motion_values():
+    """u = V + omega e_z x (x - X), stored as plain floats."""
+    m = sg.RigidMotion(velocity=np.array([1.0, -2.0]), omega=np.float32(0.5), center=(1.0, 1.0))
+    assert m.omega == 0.5 and type(m.omega) is float
+    ux, uy = m(np.array([3.0]), np.array([5.0]))
+    assert (ux[0], uy[0]) == (1.0 - 0.5 * 4.0, -2.0 + 0.5 * 2.0)
+
+
+def test_bad_tolerance_for_point_values(small):
+    _, flow = small
+    for tol in (-1.0, np.nan):
+        with pytest.raises(ValueError, match="tol"):
+            flow.velocity([[1.5], [0.0]], tol=tol)
+
+
+# symmetry (VALIDATION.md case 8) -----------------------------------------------------
+
+
+def half_box_with_hole(W, H, r, n, max_area):
+    """Right half (x >= 0) of [-W, W] x [-H, H] minus a regular 2n-gon of radius r at the origin."""
+    phi = np.pi / 2 - np.pi * np.arange(n + 1) / n  # from (0, r) clockwise to (0, -r)
+    arc = np.array([r * np.cos(phi), r * np.sin(phi)])
+    arc[0, [0, -1]] = 0.0
+    V = np.vstack([[[0.0, -H], [W, -H], [W, H], [0.0, H]], arc.T])
+    k = V.shape[0]
+    S = np.stack([np.arange(k), (np.arange(k) + 1) % k], axis=1)
+    out = triangle.triangulate(dict(vertices=V, segments=S), f"pq30a{max_area:.12f}")
+    return MeshTri(out["vertices"].T.copy(), out["triangles"].T.copy())
+
+
+def mirrored_box(W=1.0, H=2.0, r=0.3, n=24, max_area=0.01):
+    """Box with a 2n-gon hole, mirror-symmetric mesh: a half mesh and its mirror image."""
+    half = half_box_with_hole(W, H, r, n, max_area)
+    mesh = half + half.mirrored((1.0, 0.0))
+    bf = mesh.boundary_facets()
+    mid = mesh.p[:, mesh.facets[:, bf]].mean(axis=1)
+    outer = np.isclose(np.abs(mid[0]), W) | np.isclose(np.abs(mid[1]), H)
+    return mesh.with_boundaries({"wall": bf[outer], "particle0": bf[~outer]})
+
+
+@pytest.mark.parametrize("convection, mu", [(False, 1.0), (True, 0.05)],
+                         ids=["stokes", "navier-stokes-Re12"])
+def test_vertical_motion_on_mirror_symmetric_mesh_has_no_horizontal_force(convection, mu):
+    """Box [-1, 1] x [-2, 2], 48-gon of radius 0.3 at the centre moving up, closed walls.
+
+    Mirror-symmetric mesh (1354 triangles): the horizontal force and the
+    asymmetry of the velocity measure rounding error alone. The same
+    problem on an ordinary (unsymmetric) triangle mesh shows the
+    discretisation error instead.
+    """
+    mesh = mirrored_box()
+    P = mesh.p
+    dist, _ = cKDTree(P.T).query((P * [[-1.0], [1.0]]).T)
+    assert dist.max() == 0.0  # the vertex set is its own mirror image
+    bc = {"wall": (0.0, 0.0), "particle0": (0.0, 1.0)}
+    flow = sg.solve_steady(mesh, sg.Fluid(1.0, mu), bc, convection=convection)
+    for method in ("traction", "consistent"):
+        F = flow.force("particle0", method)
+        assert abs(F[0]) < 1e2 * EPS * abs(F[1])  # measured 7.7e-15 / 4.3e-16 relative
+        # torque about the centre, relative to the force times the radius
+        assert abs(flow.torque("particle0", (0, 0), method)) < 1e2 * EPS * abs(F[1]) * 0.3
+    # u_x is odd, u_y even under x -> -x; u_x = 0 on the symmetry line
+    loc = flow.space.sb.doflocs
+    d, j = cKDTree(loc.T).query((loc * [[-1.0], [1.0]]).T)
+    assert d.max() < 1e2 * EPS
+    ux, uy = flow.u[0::2], flow.u[1::2]
+    # SuperLU's refinement stops at 1e-13 relative residual; measured 1.1e-11 (Stokes)
+    assert np.abs(ux + ux[j]).max() < 1e-10
+    assert np.abs(uy - uy[j]).max() < 1e-10
+    assert np.abs(ux[np.abs(loc[0]) < 1e-14]).max() < 1e-10
+
+    unsym = sg.solve_steady(box(-1.0, -2.0, 1.0, 2.0, 0.01,
+                                hole=regular_polygon(48, 0.3, angle=np.pi / 2)),
+                            sg.Fluid(1.0, mu), bc, convection=convection)
+    Fu = unsym.force("particle0")
+    # discretisation error: measured 1.1e-6 (Stokes), 1.7e-5 (Navier-Stokes) relative
+    assert abs(Fu[0]) < 1e-4 * abs(Fu[1])
+    assert Fu[1] == pytest.approx(F[1], rel=1e-3)
