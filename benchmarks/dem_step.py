@@ -5,7 +5,9 @@ Polygons fall from a square grid in a closed box for ``T`` simulated seconds
 (default 0.1 s, the pile is then mostly in contact), then ``N`` steps are
 timed with the numba overlap kernel and ``N/10`` with the pure-numpy one.
 Writes ``benchmarks/results/dem_step.json`` (steps/s for 100 and 1000
-polygons with 6-12 vertices).
+polygons with 6-12 vertices), per wall-clock second and per CPU second of
+this process (the single-threaded rate, insensitive to other jobs on the
+machine), with the 1-minute load average at the start of the window.
 """
 
 from __future__ import annotations
@@ -51,12 +53,15 @@ def time_steps(s: DEMSystem, steps: int, backend: str) -> dict:
     """Steps/s of ``steps`` steps of ``s`` with the given overlap backend."""
     s.backend = backend
     builds = s.neighbours.builds
-    t0 = time.perf_counter()
+    load = os.getloadavg()[0]
+    t0, c0 = time.perf_counter(), time.process_time()
     for _ in range(steps):
         s.step()
-    el = time.perf_counter() - t0
+    el, cpu = time.perf_counter() - t0, time.process_time() - c0
     return {"particles": s.n, "backend": backend, "steps": steps, "seconds": el,
-            "steps_per_second": steps / el, "contacts": int(s.contacts.i.size),
+            "steps_per_second": steps / el, "cpu_seconds": cpu,
+            "steps_per_cpu_second": steps / cpu, "load_average_1min": load,
+            "contacts": int(s.contacts.i.size),
             "dt": s.dt, "simulated_time": s.t,
             "verlet_rebuilds_in_window": s.neighbours.builds - builds}
 
@@ -82,8 +87,10 @@ def main(argv=None):
             res = time_steps(s, steps if b == "numba" else max(steps // 10, 2), b)
             res["settle_steps"] = s.steps - res["steps"]
             res["settle_seconds"] = settle_seconds
-            print(f"{n:5d} polygons, {b:5s}: {res['steps_per_second']:8.1f} steps/s "
-                  f"({res['contacts']} contacts, t = {res['simulated_time']:.4f} s)")
+            print(f"{n:5d} polygons, {b:5s}: {res['steps_per_second']:8.1f} steps/s wall, "
+                  f"{res['steps_per_cpu_second']:8.1f} per CPU second "
+                  f"({res['contacts']} contacts, t = {res['simulated_time']:.4f} s, "
+                  f"load {res['load_average_1min']:.1f})")
             results.append(res)
     out = {"benchmark": "dem_step", "machine": platform.platform(),
            "cpus": os.cpu_count(), "python": platform.python_version(),
