@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from . import timestep as ts
 from .dem import DEMSystem
@@ -148,10 +149,13 @@ class Simulation:
         bar = tqdm(total=n_steps, disable=not (n_steps > 50 if progress is None else progress),
                    desc=sc.name, unit="step")
         try:
-            if sc.dry:
-                self._run_dry(n_steps, dt, hist, series, bar)
-            else:
-                self._run_coupled(n_steps, dt, hist, series, bar)
+            # many small BLAS calls (norms, dots) next to SuperLU: OpenBLAS threads only
+            # spin against each other on 2 cores (measured: 16 ms instead of 5 us per norm)
+            with threadpool_limits(limits=1, user_api="blas"):
+                if sc.dry:
+                    self._run_dry(n_steps, dt, hist, series, bar)
+                else:
+                    self._run_coupled(n_steps, dt, hist, series, bar)
         finally:
             bar.close()
             if not sc.dry:
@@ -226,8 +230,12 @@ class Simulation:
             # the last step lands on t_end; keep dt (and the factorisation) when only rounding differs
             step = remaining if (k == n_steps - 1 and abs(remaining - dt) > 1e-9 * dt) else dt
             F_ext, T_ext = self._external()
+            # linear extrapolation of the last two states as the Newton initial guess
+            w = 0.0 if dt_prev is None else step / dt_prev
+            u_guess = u_n if u_prev is None else u_n + w * (u_n - u_prev)
+            xi_guess = xi_n if xi_prev is None else xi_n + w * (xi_n - xi_prev)
             res = self.coupling.step(step, dt_prev, u_n, u_prev, xi_n, xi_prev, F_ext, T_ext,
-                                     t + step, p_guess=p_n)
+                                     t + step, p_guess=p_n, u_guess=u_guess, xi_guess=xi_guess)
             a0, a1, a2 = ts.bdf2_coefficients(step, dt_prev)
             xi_new = res["xi"]
             t0 = time.perf_counter()
