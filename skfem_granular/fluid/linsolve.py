@@ -197,15 +197,23 @@ class PardisoSolver(SaddlePointSolver):
 class KrylovSolver(SaddlePointSolver):
     """FGMRES with a pyamg block-triangular preconditioner.
 
-    The velocity block is approximated by an inner solve to ``inner_rtol``:
-    conjugate gradients (symmetric block, Stokes) or GMRES (with convection)
-    preconditioned by smoothed aggregation, whose near-nullspace is the two
-    constant vector fields (the free velocity unknowns come in interleaved
-    ``(x, y)`` pairs). The pressure Schur complement is approximated as in
-    Cahouet-Chabard, ``S^-1 ~ eta Mp^-1 + a0 rho Lp^-1``, with the pressure
-    mass matrix factorised exactly. A single V-cycle and a lumped mass
-    matrix instead needed ~200 FGMRES iterations on a 10k-unknown Stokes
-    problem (annulus, 64 segments), this needs ~35.
+    Symmetric velocity block (Stokes, BDF2-Stokes): the velocity block is
+    approximated by conjugate gradients to ``inner_rtol`` preconditioned by
+    smoothed aggregation, whose near-nullspace is the two constant vector
+    fields (the free velocity unknowns come in interleaved ``(x, y)``
+    pairs); the pressure Schur complement as in Cahouet-Chabard,
+    ``S^-1 ~ eta Mp^-1 + a0 rho Lp^-1``, with the pressure mass matrix
+    factorised exactly. A single V-cycle and a lumped mass matrix instead
+    needed ~200 FGMRES iterations on a 10k-unknown Stokes problem (annulus,
+    64 segments), this needs ~35.
+
+    Non-symmetric velocity block (Newton steps of steady Navier-Stokes):
+    GMRES with an incomplete LU factorisation for the velocity block and
+    the least-squares commutator ``S^-1 ~ L^-1 (B Q^-1 A Q^-1 B^T) L^-1``,
+    ``L = B Q^-1 B^T``, ``Q = diag(A)``, for the Schur complement. The
+    Cahouet-Chabard approximation ignores convection and stalled from
+    Reynolds number ~30 on (annulus drag case); smoothed aggregation did
+    not converge on the convection-dominated velocity block.
 
     Parameters
     ----------
@@ -245,14 +253,17 @@ class KrylovSolver(SaddlePointSolver):
         self._Bt = self._A[:nu, nu:]
         amax = abs(Auu).max() if Auu.nnz else 1.0
         self._symmetric = Auu.nnz == 0 or abs(Auu - Auu.T).max() <= 1e-12 * amax
+        npr = A.shape[0] - nu
+        self._Auu = Auu
+        if not self._symmetric:
+            self._factorize_convective(Auu, npr)
+            return
         B = None
         if nu >= 2 and nu % 2 == 0:  # near-nullspace: x and y translations
             B = np.zeros((nu, 2))
             B[0::2, 0] = 1.0
             B[1::2, 1] = 1.0
-        self._ml_u = pyamg.smoothed_aggregation_solver(
-            Auu, B=B, symmetry="symmetric" if self._symmetric else "nonsymmetric")
-        npr = A.shape[0] - nu
+        self._ml_u = pyamg.smoothed_aggregation_solver(Auu, B=B, symmetry="symmetric")
         if Mp is None:
             Mp = sp.identity(npr)
         # Schur complement of the scaled system: s^2 * (eta Mp^-1 + a0 rho Lp^-1)^-1 (negated)
@@ -263,20 +274,42 @@ class KrylovSolver(SaddlePointSolver):
             Lreg = (Lp + 1e-8 * abs(Lp).max() * sp.identity(npr)).tocsr()
             self._ml_p = pyamg.smoothed_aggregation_solver(Lreg)
 
+    def _factorize_convective(self, Auu, npr):
+        nu = self.nu
+        self._ilu = spla.spilu(Auu.tocsc(), drop_tol=1e-4, fill_factor=10)
+        self._ilu_op = spla.LinearOperator((nu, nu), matvec=self._ilu.solve, dtype=float)
+        if npr:
+            Qinv = sp.diags(1.0 / np.maximum(np.abs(Auu.diagonal()), 1e-300))
+            B = self._A[nu:, :nu]
+            QBt = Qinv @ self._Bt
+            self._lsc_L = spla.splu(sp.csc_matrix(B @ QBt))
+            self._lsc_F = (B @ Qinv @ Auu @ QBt).tocsr()
+
+    def _schur(self, rp):
+        """Approximate ``S^-1 rp`` for the scaled system (``S`` negative definite)."""
+        if not self._symmetric:
+            return -self._lsc_L.solve(self._lsc_F @ self._lsc_L.solve(rp))
+        zp = self._eta * self._mp_lu.solve(rp)
+        if self._ml_p is not None:
+            zp = zp + self._a0rho * self._ml_p.solve(rp, tol=1e-3, maxiter=2, cycle="V")
+        return -zp / self._s**2
+
+    def _velocity(self, ru):
+        if self._symmetric:
+            return self._ml_u.solve(ru, tol=self.inner_rtol, maxiter=20, cycle="V", accel="cg")
+        zu, _ = spla.gmres(self._Auu, ru, M=self._ilu_op, rtol=self.inner_rtol, atol=0.0,
+                           restart=30, maxiter=2)
+        return zu
+
     def _precondition(self, r):
         nu = self.nu
         ru, rp = r[:nu], r[nu:]
         if rp.size:
-            zp = self._eta * self._mp_lu.solve(rp)
-            if self._ml_p is not None:
-                zp = zp + self._a0rho * self._ml_p.solve(rp, tol=1e-3, maxiter=2, cycle="V")
-            zp = -zp / self._s**2
+            zp = self._schur(rp)
             ru = ru - self._Bt @ zp
         else:
             zp = rp
-        accel = "cg" if self._symmetric else "gmres"
-        zu = self._ml_u.solve(ru, tol=self.inner_rtol, maxiter=20, cycle="V", accel=accel)
-        return np.concatenate([zu, zp])
+        return np.concatenate([self._velocity(ru), zp])
 
     def _solve(self, b):
         from pyamg.krylov import fgmres
