@@ -81,6 +81,8 @@ def write_vtu(path, points: np.ndarray, cells: dict, point_data: dict | None = N
     point_data, cell_data : dict, optional
         Fields; vector point data as ``(2, N)`` arrays.
     """
+    if Path(path).suffix != ".vtu":
+        raise ValueError(f"path = {str(path)!r}: a VTU file must end in '.vtu'")
     pts = np.asarray(points, dtype=float)
     if pts.shape[0] == 2:
         pts = np.vstack([pts, np.zeros(pts.shape[1])])

@@ -318,6 +318,11 @@ def test_unwritable_output_paths_raise_naming_the_path(rotation, tmp_path):
         PVDSeries(blocker / "x.pvd")
     with pytest.raises(ValueError, match="must end in '.pvd'"):
         PVDSeries(tmp_path / "x.vtu")
+    for name in ("x.vtk", "x"):  # meshio would write VTU XML under any name
+        with pytest.raises(ValueError, match="must end in '.vtu'"):
+            flow.save(tmp_path / name)
+        assert not (tmp_path / name).exists()
+    (tmp_path / "dir.vtu").mkdir()
     with pytest.raises(ValueError, match="is a directory"):
-        flow.save(tmp_path)
+        flow.save(tmp_path / "dir.vtu")
     assert blocker.read_text() == "not a directory"
