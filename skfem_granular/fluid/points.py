@@ -88,23 +88,23 @@ class PointLocator:
             nearest[upd] = cand[rows[better], j[better]]
             inside = lam_j >= -1e-12
             cells[todo[inside]] = cand[rows[inside], j[inside]]
-        missing = np.flatnonzero(cells < 0)
-        if missing.size:
-            # not in any of the nearest elements by centroid (a large element
-            # next to many small ones, or outside): test every element
-            c_all, ref_all, lam_all = self._search_all(x[:, missing])
-            better = lam_all > best[missing]
-            upd = missing[better]
+        # far from all of the nearest elements by centroid: in a large element
+        # next to many small ones, or outside; test every element (in chunks,
+        # so that the first point outside stops the search)
+        far = np.flatnonzero((cells < 0) & (-best > tol))
+        for idx, c_all, ref_all, lam_all in self._search_all(x, far):
+            better = lam_all > best[idx]
+            upd = idx[better]
             best[upd], nearest[upd], X[:, upd] = lam_all[better], c_all[better], ref_all[:, better]
-            found = missing[best[missing] >= -1e-12]
-            cells[found] = nearest[found]
-            missing = np.flatnonzero(cells < 0)
-        if missing.size:
-            ok = -best[missing] <= tol
-            if not np.all(ok):
-                i = missing[~ok][0]
+            out = idx[-best[idx] > tol]
+            if out.size:
+                i = out[0]
                 raise ValueError(f"{name}[:, {i}] = ({x[0, i]:.6g}, {x[1, i]:.6g}) lies outside "
-                                 f"the mesh ({int(np.count_nonzero(~ok))} point(s) outside)")
+                                 f"the mesh (farther than tol = {tol:g} element sizes)")
+            found = idx[best[idx] >= -1e-12]
+            cells[found] = nearest[found]
+        missing = np.flatnonzero(cells < 0)
+        if missing.size:  # within tol of an element: snap onto it
             cells[missing] = nearest[missing]
             r = np.clip(X[:, missing], 0.0, 1.0)
             s = r.sum(axis=0)
@@ -113,22 +113,22 @@ class PointLocator:
             X[:, missing] = r
         return cells, X
 
-    def _search_all(self, x: np.ndarray, chunk_entries: int = 2_000_000):
-        """Element of largest smallest barycentric coordinate for each point (all elements)."""
+    def _search_all(self, x: np.ndarray, which: np.ndarray, chunk_entries: int = 2_000_000):
+        """Test points ``x[:, which]`` against every element, in chunks.
+
+        Yields ``(idx, cells, X, lam)`` per chunk: the element of largest
+        smallest barycentric coordinate ``lam`` and the reference coordinates.
+        """
         nel = self._p0.shape[1]
-        n = x.shape[1]
-        cells, X, lam_best = np.zeros(n, dtype=np.int64), np.zeros((2, n)), np.zeros(n)
         m = max(1, chunk_entries // max(nel, 1))
-        for s0 in range(0, n, m):
-            d = x[:, s0:s0 + m, None] - self._p0[:, None, :]  # (2, m, nel)
+        for s0 in range(0, which.size, m):
+            idx = which[s0:s0 + m]
+            d = x[:, idx, None] - self._p0[:, None, :]  # (2, m, nel)
             ref = np.einsum("ijk,jmk->imk", self._inv, d)
             lam = np.minimum(np.minimum(ref[0], ref[1]), 1.0 - ref[0] - ref[1])
             j = np.argmax(lam, axis=1)
-            rows = np.arange(d.shape[1])
-            cells[s0:s0 + m] = j
-            X[:, s0:s0 + m] = ref[:, rows, j]
-            lam_best[s0:s0 + m] = lam[rows, j]
-        return cells, X, lam_best
+            rows = np.arange(idx.size)
+            yield idx, j, ref[:, rows, j], lam[rows, j]
 
 
 def evaluation_matrix(basis, cells: np.ndarray, X: np.ndarray) -> sp.csr_matrix:
