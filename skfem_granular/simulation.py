@@ -258,6 +258,7 @@ class Simulation:
             self.timings["dem"] += time.perf_counter() - t0
             acc = a0 * xi_new + a1 * xi_n + (a2 * xi_prev if xi_prev is not None else 0.0)
             x = res["x"]
+            nu = self.space.nu
             u_prev, u_n = u_n, x[:nu].copy()
             p_n = x[nu:].copy()
             xi_prev, xi_n = xi_n, xi_new
