@@ -116,18 +116,13 @@ def accumulate(system, cf: ContactForces, q: np.ndarray, F: np.ndarray, T: np.nd
     if cf.i.size == 0:
         return F, T
     f = cf.force_on_i
-    ri = cf.point - q[:2, cf.i]
-    ti = ri[0] * f[1] - ri[1] * f[0]
-    F[0] += np.bincount(cf.i, weights=f[0], minlength=N)
-    F[1] += np.bincount(cf.i, weights=f[1], minlength=N)
-    T += np.bincount(cf.i, weights=ti, minlength=N)
     part = cf.j < N
-    if np.any(part):
-        j = cf.j[part]
-        fj = -f[:, part]
-        rj = cf.point[:, part] - q[:2, j]
-        tj = rj[0] * fj[1] - rj[1] * fj[0]
-        F[0] += np.bincount(j, weights=fj[0], minlength=N)
-        F[1] += np.bincount(j, weights=fj[1], minlength=N)
-        T += np.bincount(j, weights=tj, minlength=N)
+    # body i gets f, particle j gets -f; walls (j >= N) take nothing
+    idx = np.concatenate([cf.i, cf.j[part]])
+    fx = np.concatenate([f[0], -f[0, part]])
+    fy = np.concatenate([f[1], -f[1, part]])
+    r = cf.point[:, np.concatenate([np.arange(cf.i.size), np.nonzero(part)[0]])] - q[:2, idx]
+    F[0] += np.bincount(idx, weights=fx, minlength=N)
+    F[1] += np.bincount(idx, weights=fy, minlength=N)
+    T += np.bincount(idx, weights=r[0] * fy - r[1] * fx, minlength=N)
     return F, T
