@@ -69,6 +69,26 @@ class DEMSystem:
         Total force and torque of the last evaluation.
     contacts
         :class:`~skfem_granular.dem.contact_law.ContactForces` of the last step.
+
+    Notes
+    -----
+    Units are SI per unit length in z: mass ``density * area`` (kg/m), ``E``
+    such that ``E A / L`` is a force per unit length. One :meth:`step` runs
+    the pipeline of :mod:`.pipeline` once at the BDF2-predicted state. After
+    setting positions or velocities by hand call :meth:`reset_history`;
+    :meth:`save_state` / :meth:`restore_state` carry everything needed for a
+    bitwise-identical continuation (state, BDF2 history, contact springs,
+    external forces). Without ``domain`` no containment check is made (open
+    scenes are allowed).
+
+    Examples
+    --------
+    >>> from skfem_granular.dem import DEMSystem, Particle, Polygon
+    >>> grain = Particle(Polygon.regular(6, 0.4e-3, center=(1.5e-3, 0.5e-3)), 2650.0)
+    >>> dem = DEMSystem.in_box([grain], (0.0, 0.0, 3e-3, 11e-3), wall_thickness=0.5e-3)
+    >>> n = dem.advance(1e-4)              # substeps of at most dem.dt_stable
+    >>> dem.external_force[:, 0] = (0.0, 1e-3)   # e.g. a hydrodynamic force
+    >>> outline = dem.core_outlines()[0]   # (2, 6) counter-clockwise, for the mesh
     """
 
     def __init__(self, particles, walls=(), *, law: ContactLaw | None = None,
