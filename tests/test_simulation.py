@@ -164,3 +164,34 @@ def test_paper_single_particle_fine_vs_graded(paper):
     u = Simulation(paper.with_mesh("uniform")).run(progress=False)
     vg, vu = g.history.vy[:, 0], u.history.vy[:, 0]
     assert np.abs(vg - vu).max() < 0.02 * np.abs(vu).max()
+
+
+def test_grains_on_the_floor_contacts_and_remeshing(tmp_path):
+    """A 2 x 2 block of hexagons just above the floor: contacts, DEM subcycling, remeshing."""
+    import meshing
+
+    data = {"domain": {"box": [0.0, 0.0, 6e-3, 4e-3]},
+            "fluid": {"density": 1000.0, "viscosity": 1e-3},
+            "grid": {"nx": 2, "ny": 2, "sides": 6, "radius": 0.5e-3, "spacing": 1.1e-3,
+                     "origin": [2.4e-3, 0.437e-3], "density": 2650.0, "core_ratio": 0.8},
+            "mesh": {"kind": "group", "delta_l": 0.2e-3},
+            "time": {"t_end": 5e-3, "dt": 2e-4},
+            "coupling": {"remesh_fraction": 0.05}}
+    sc = Scene.from_dict(data, name="floor")
+    sim = Simulation(sc, output_dir=tmp_path)
+    assert sim.contacts_active
+    res = sim.run(progress=False)
+    h = res.history
+    assert np.all(np.isfinite(h.vy))
+    assert np.all(h.contacts[:, :2].max(axis=0) >= 1)  # both bottom grains reach the floor
+    # the floor stops them: their speed falls far below that of the grains still sinking
+    assert np.abs(h.vy[-3:, :2]).max() < 0.3 * np.abs(h.vy[-1, 2:]).min()
+    assert sim.remeshes >= 1
+    # the fluid domain is the box minus the cores, exactly, on every new mesh
+    cores = sim.dem.core_outlines()
+    area = 6e-3 * 4e-3 - sum(0.5 * np.sum(c[0] * np.roll(c[1], -1) - np.roll(c[0], -1) * c[1])
+                             for c in cores)
+    assert sim.space.ub.dx.sum() == pytest.approx(area, rel=1e-12)
+    assert meshing.mesh_stats(sim.mesh).n_inverted == 0
+    # the floor holds the bottom grains: overlap stays a small fraction of their size
+    assert min(s[1].min() for s in sim.dem.shadow_outlines()) > -0.05e-3
