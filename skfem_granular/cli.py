@@ -14,8 +14,9 @@ from dataclasses import replace
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="skfem-granular",
-                                description="Polygonal particles in fluid on graded FEM meshes.")
+    p = argparse.ArgumentParser(
+        prog="skfem-granular", description="Polygonal particles in fluid on graded FEM meshes."
+    )
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene (TOML)")
     run.add_argument("scene", help="scene file, e.g. scenes/single_particle.toml")
@@ -29,19 +30,27 @@ def _parser() -> argparse.ArgumentParser:
 
 def format_summary(s: dict) -> str:
     """Human-readable run summary."""
-    lines = [f"scene: {s['scene']}   coupling: {s['coupling']}   particles: {s['particles']}",
-             "effects: " + ", ".join(f"{k}={'on' if v else 'off'}" for k, v in s["effects"].items())]
+    lines = [
+        f"scene: {s['scene']}   coupling: {s['coupling']}   particles: {s['particles']}",
+        "effects: " + ", ".join(f"{k}={'on' if v else 'off'}" for k, v in s["effects"].items()),
+    ]
     if "mesh" in s:
         m = s["mesh"]
-        lines.append(f"mesh: {m['kind']}, {m['vertices']} vertices, {m['p2_nodes']} P2 nodes, "
-                     f"{m['triangles']} triangles, {m['dofs']} DOFs, min angle {m['min_angle']:.1f} deg")
-    lines.append(f"steps: {s['steps']} (dt = {s['dt']:.3g} s) to t = {s['t_end']:.6g} s, "
-                 f"remeshes: {s['remeshes']}")
+        lines.append(
+            f"mesh: {m['kind']}, {m['vertices']} vertices, {m['p2_nodes']} P2 nodes, "
+            f"{m['triangles']} triangles, {m['dofs']} DOFs, min angle {m['min_angle']:.1f} deg"
+        )
+    lines.append(
+        f"steps: {s['steps']} (dt = {s['dt']:.3g} s) to t = {s['t_end']:.6g} s, "
+        f"remeshes: {s['remeshes']}"
+    )
     if "final" in s:
         f = s["final"]
         if s["particles"] == 1:
-            lines.append(f"particle 0: x = {f['x'][0]:.9g} m, y = {f['y'][0]:.9g} m, "
-                         f"vx = {f['vx'][0]:.4g} m/s, vy = {f['vy'][0]:.6g} m/s")
+            lines.append(
+                f"particle 0: x = {f['x'][0]:.9g} m, y = {f['y'][0]:.9g} m, "
+                f"vx = {f['vx'][0]:.4g} m/s, vy = {f['vy'][0]:.6g} m/s"
+            )
         else:
             import numpy as np
 
@@ -66,9 +75,14 @@ def main(argv=None) -> int:
         if args.t_end is not None or args.dt is not None:
             from .scene import TimeSpec
 
-            scene = replace(scene, time=TimeSpec(
-                t_end=scene.time.t_end if args.t_end is None else args.t_end,
-                dt=scene.time.dt if args.dt is None else args.dt, dem_dt=scene.time.dem_dt))
+            scene = replace(
+                scene,
+                time=TimeSpec(
+                    t_end=scene.time.t_end if args.t_end is None else args.t_end,
+                    dt=scene.time.dt if args.dt is None else args.dt,
+                    dem_dt=scene.time.dem_dt,
+                ),
+            )
         out = args.out or scene.output_dir or f"out/{scene.name}"
         sim = Simulation(scene, output_dir=out)
     except ValueError as exc:

@@ -36,10 +36,23 @@ class PartitionedCoupling:
         Under-relaxation of the particle velocity between sub-iterations.
     """
 
-    def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
-                 convection: bool = True, rotation: bool = True, solver: str = "auto",
-                 subiterations: int = 1, relaxation: float = 0.5, newton_tol: float = 1e-9,
-                 max_iterations: int = 15):
+    def __init__(
+        self,
+        space,
+        fluid,
+        walls: dict,
+        centers,
+        mass,
+        inertia,
+        *,
+        convection: bool = True,
+        rotation: bool = True,
+        solver: str = "auto",
+        subiterations: int = 1,
+        relaxation: float = 0.5,
+        newton_tol: float = 1e-9,
+        max_iterations: int = 15,
+    ):
         self.space = space
         self.fluid = fluid
         self.K = int(np.asarray(mass).size)
@@ -50,8 +63,9 @@ class PartitionedCoupling:
         names = [f"particle{k}" for k in range(self.K)]
         specs = dict(walls)
         specs.update({n: (0.0, 0.0) for n in names})
-        self.op = NavierStokesOperator(space, fluid, DirichletData(space, specs),
-                                       convection=convection)
+        self.op = NavierStokesOperator(
+            space, fluid, DirichletData(space, specs), convection=convection
+        )
         self.walls = DirichletData(space, walls) if walls else None
         self.particle_dofs = [space.boundary_dofs(n) for n in names]
         self.subiterations = int(subiterations)
@@ -99,12 +113,27 @@ class PartitionedCoupling:
             x[free] += dx
             if not op.convection:
                 return it
-            if float(np.abs(dx).max()) <= self.newton_tol * max(scale, np.abs(x[: self.space.nu]).max()):
+            if float(np.abs(dx).max()) <= self.newton_tol * max(
+                scale, np.abs(x[: self.space.nu]).max()
+            ):
                 return it
         raise ConvergenceError("partitioned coupling: fluid corrector did not converge")
 
-    def step(self, dt, dt_prev, u_n, u_prev, xi_n, xi_prev, F_ext, T_ext, t_new,
-             p_guess=None, u_guess=None, xi_guess=None):
+    def step(
+        self,
+        dt,
+        dt_prev,
+        u_n,
+        u_prev,
+        xi_n,
+        xi_prev,
+        F_ext,
+        T_ext,
+        t_new,
+        p_guess=None,
+        u_guess=None,
+        xi_guess=None,
+    ):
         """One staggered step; returns the same dictionary as the monolithic coupling."""
         sp_, op = self.space, self.op
         a0, a1, a2 = ts.bdf2_coefficients(dt, dt_prev)
@@ -130,7 +159,7 @@ class PartitionedCoupling:
         x = np.zeros(sp_.N)
         x[: sp_.nu] = u_n
         if p_guess is not None:
-            x[sp_.nu:] = p_guess
+            x[sp_.nu :] = p_guess
         scale = max(float(np.abs(u_n).max()), float(np.abs(xi_n[:2]).max()), 1e-12)
         its = 0
         t0 = time.perf_counter()
@@ -149,7 +178,8 @@ class PartitionedCoupling:
             changes.append(float(np.abs(xi_new - xi).max()))
             # the fixed-point map amplifies by ~C_a rho_f / rho_p: growing changes = divergence
             if not np.all(np.isfinite(xi_new)) or (
-                    len(changes) >= 4 and changes[-1] > changes[-2] > changes[-3] > changes[-4]):
+                len(changes) >= 4 and changes[-1] > changes[-2] > changes[-3] > changes[-4]
+            ):
                 self._diverged(t_new, xi_new)
             xi = xi_new if sub == 0 else self.relaxation * xi_new + (1 - self.relaxation) * xi
         self.timings["solve"] += time.perf_counter() - t0
@@ -160,7 +190,8 @@ class PartitionedCoupling:
     def _diverged(t, xi):
         raise ConvergenceError(
             f"partitioned coupling diverged at t={t:.6g} (|V| = {np.abs(xi).max():.3g}): the "
-            "added-mass instability of light particles; use the monolithic coupling")
+            "added-mass instability of light particles; use the monolithic coupling"
+        )
 
     def flow(self, x):
         """The fluid state as a :class:`~skfem_granular.fluid.Flow`."""

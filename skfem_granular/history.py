@@ -7,8 +7,20 @@ import numpy as np
 from .io import atomic_write
 
 #: Per-particle columns: name -> how to read it from a record.
-PARTICLE_COLUMNS = ("x", "y", "angle", "vx", "vy", "omega", "ax", "ay", "Fx", "Fy", "torque",
-                    "contacts")
+PARTICLE_COLUMNS = (
+    "x",
+    "y",
+    "angle",
+    "vx",
+    "vy",
+    "omega",
+    "ax",
+    "ay",
+    "Fx",
+    "Fy",
+    "torque",
+    "contacts",
+)
 
 
 class History:
@@ -43,11 +55,17 @@ class History:
 
     def to_csv(self, path) -> None:
         """Write the table (one column per quantity and particle) atomically."""
-        head = ["t", "dt", "iterations"] + [f"{c}_{k}" for k in range(self.K)
-                                            for c in PARTICLE_COLUMNS]
-        data = np.column_stack([self.t, self.dt, self.iterations]
-                               + [getattr(self, c)[:, k] for k in range(self.K)
-                                  for c in PARTICLE_COLUMNS]) if self.rows else np.zeros((0, len(head)))
+        head = ["t", "dt", "iterations"] + [
+            f"{c}_{k}" for k in range(self.K) for c in PARTICLE_COLUMNS
+        ]
+        data = (
+            np.column_stack(
+                [self.t, self.dt, self.iterations]
+                + [getattr(self, c)[:, k] for k in range(self.K) for c in PARTICLE_COLUMNS]
+            )
+            if self.rows
+            else np.zeros((0, len(head)))
+        )
 
         def write(tmp):
             np.savetxt(tmp, data, delimiter=",", header=",".join(head), comments="", fmt="%.10g")

@@ -53,7 +53,9 @@ def _num(section, name, value, *, lo=None, hi=None, lo_open=True, allow_none=Fal
             rng.append(f"{'>' if lo_open else '>='} {lo:g}")
         if hi is not None:
             rng.append(f"<= {hi:g}")
-        raise ValueError(f"{full} = {value!r}: must be a finite number {' and '.join(rng)}".rstrip())
+        raise ValueError(
+            f"{full} = {value!r}: must be a finite number {' and '.join(rng)}".rstrip()
+        )
     return x
 
 
@@ -70,8 +72,9 @@ def _vec(section, name, value, n=2):
 def _check_keys(section: str, data: dict, allowed) -> None:
     unknown = sorted(set(data) - set(allowed))
     if unknown:
-        raise ValueError(f"{section}: unknown key {unknown[0]!r}; allowed keys are "
-                         f"{', '.join(sorted(allowed))}")
+        raise ValueError(
+            f"{section}: unknown key {unknown[0]!r}; allowed keys are {', '.join(sorted(allowed))}"
+        )
 
 
 @dataclass(frozen=True)
@@ -126,7 +129,9 @@ class MeshSpec:
     def __post_init__(self):
         if self.kind not in ("graded", "uniform", "group"):
             raise ValueError(f"mesh.kind = {self.kind!r}: must be 'graded', 'uniform' or 'group'")
-        object.__setattr__(self, "delta_l", _num("mesh", "delta_l", self.delta_l, lo=0, allow_none=True))
+        object.__setattr__(
+            self, "delta_l", _num("mesh", "delta_l", self.delta_l, lo=0, allow_none=True)
+        )
         object.__setattr__(self, "h", _num("mesh", "h", self.h, lo=0, allow_none=True))
         if self.sigma is not None:
             object.__setattr__(self, "sigma", _num("mesh", "sigma", self.sigma, lo=1.0, hi=1.6))
@@ -143,7 +148,9 @@ class TimeSpec:
     def __post_init__(self):
         object.__setattr__(self, "t_end", _num("time", "t_end", self.t_end, lo=0))
         object.__setattr__(self, "dt", _num("time", "dt", self.dt, lo=0))
-        object.__setattr__(self, "dem_dt", _num("time", "dem_dt", self.dem_dt, lo=0, allow_none=True))
+        object.__setattr__(
+            self, "dem_dt", _num("time", "dem_dt", self.dem_dt, lo=0, allow_none=True)
+        )
         if self.dt > self.t_end:
             raise ValueError(f"time.dt = {self.dt:g}: must be <= time.t_end = {self.t_end:g}")
 
@@ -160,8 +167,13 @@ class ParticleSpec:
 
     def to_dem(self) -> Particle:
         """The DEM particle."""
-        return Particle(self.polygon, self.density, velocity=self.velocity,
-                        angular_velocity=self.angular_velocity, core_ratio=self.core_ratio)
+        return Particle(
+            self.polygon,
+            self.density,
+            velocity=self.velocity,
+            angular_velocity=self.angular_velocity,
+            core_ratio=self.core_ratio,
+        )
 
 
 @dataclass(frozen=True)
@@ -207,7 +219,9 @@ class Scene:
     def __post_init__(self):
         d = _vec("domain", "box", self.domain, 4)
         if not (d[2] > d[0] and d[3] > d[1]):
-            raise ValueError(f"domain.box = {list(d)}: must be (x0, y0, x1, y1) with x1 > x0, y1 > y0")
+            raise ValueError(
+                f"domain.box = {list(d)}: must be (x0, y0, x1, y1) with x1 > x0, y1 > y0"
+            )
         object.__setattr__(self, "domain", d)
         object.__setattr__(self, "gravity", _vec("scene", "gravity", self.gravity))
         _num("domain", "wall_thickness", self.wall_thickness, lo=0)
@@ -222,10 +236,12 @@ class Scene:
             _vec(f"particles[{i}]", "velocity", p.velocity)
             _num(f"particles[{i}]", "angular_velocity", p.angular_velocity)
             V = p.polygon.vertices
-            if (V[0].min() < d[0] or V[0].max() > d[2] or V[1].min() < d[1] or V[1].max() > d[3]):
+            if V[0].min() < d[0] or V[0].max() > d[2] or V[1].min() < d[1] or V[1].max() > d[3]:
                 raise ValueError(f"particles[{i}]: polygon sticks out of domain.box {list(d)}")
         if self.coupling not in ("monolithic", "partitioned"):
-            raise ValueError(f"coupling.scheme = {self.coupling!r}: must be 'monolithic' or 'partitioned'")
+            raise ValueError(
+                f"coupling.scheme = {self.coupling!r}: must be 'monolithic' or 'partitioned'"
+            )
         _num("coupling", "remesh_fraction", self.remesh_fraction, lo=0, hi=1.0)
         if not (isinstance(self.vtu_every, int) and self.vtu_every >= 0):
             raise ValueError(f"output.vtu_every = {self.vtu_every!r}: must be an integer >= 0")

@@ -87,11 +87,17 @@ class Simulation:
         eff = scene.effects
         g = np.asarray(scene.gravity) if eff.gravity else np.zeros(2)
         self.g = g
-        self.dem = DEMSystem.in_box([p.to_dem() for p in scene.particles], scene.domain,
-                                    scene.wall_thickness, law=scene.contact_law, gravity=g,
-                                    dt=scene.time.dem_dt)
-        self.contacts_active = (contacts_needed(scene, self.dem) if eff.contacts == "auto"
-                                else bool(eff.contacts))
+        self.dem = DEMSystem.in_box(
+            [p.to_dem() for p in scene.particles],
+            scene.domain,
+            scene.wall_thickness,
+            law=scene.contact_law,
+            gravity=g,
+            dt=scene.time.dem_dt,
+        )
+        self.contacts_active = (
+            contacts_needed(scene, self.dem) if eff.contacts == "auto" else bool(eff.contacts)
+        )
         self.warnings = scene_warnings(scene, self.dem, self.contacts_active)
         self.remeshes = 0
         if not scene.dry:
@@ -114,8 +120,9 @@ class Simulation:
         cores = self.dem.core_outlines()
         self.core_area = outline_areas(cores)
         self.edge = np.array([outline_edge(c, self.scene.mesh.delta_l) for c in cores])
-        self.radius = np.array([np.linalg.norm(c - c.mean(axis=1, keepdims=True), axis=0).max()
-                                for c in cores])
+        self.radius = np.array(
+            [np.linalg.norm(c - c.mean(axis=1, keepdims=True), axis=0).max() for c in cores]
+        )
         self.timings["assembly"] += time.perf_counter() - t0
 
     def _external(self):
@@ -139,7 +146,9 @@ class Simulation:
         v0 = dem.velocities.copy()
         w0 = dem.angular_velocities.copy()
         dem.advance(dt)
-        F_c = dem.mass * (dem.velocities - v0) / dt - np.outer(self.g, dem.mass) - dem.external_force
+        F_c = (
+            dem.mass * (dem.velocities - v0) / dt - np.outer(self.g, dem.mass) - dem.external_force
+        )
         T_c = dem.inertia * (dem.angular_velocities - w0) / dt - dem.external_torque
         q = np.vstack([dem.positions, dem.angles[None, :]]).copy()
         return F_c, T_c, q
@@ -161,8 +170,12 @@ class Simulation:
         n_steps = max(1, int(math.ceil(sc.time.t_end / dt - 1e-9)))
         hist = History(self.dem.n)
         series = self._open_series()
-        bar = tqdm(total=n_steps, disable=not (n_steps > 50 if progress is None else progress),
-                   desc=sc.name, unit="step")
+        bar = tqdm(
+            total=n_steps,
+            disable=not (n_steps > 50 if progress is None else progress),
+            desc=sc.name,
+            unit="step",
+        )
         try:
             # many small BLAS calls (norms, dots) next to SuperLU: OpenBLAS threads only
             # spin against each other on 2 cores (measured: 16 ms instead of 5 us per norm)
@@ -186,8 +199,10 @@ class Simulation:
         if self.output_dir is None:
             return None
         d = self.output_dir
-        return {"flow": None if self.scene.dry else PVDSeries(d / "flow.pvd"),
-                "particles": PVDSeries(d / "particles.pvd")}
+        return {
+            "flow": None if self.scene.dry else PVDSeries(d / "flow.pvd"),
+            "particles": PVDSeries(d / "particles.pvd"),
+        }
 
     def _write_frame(self, series, t, x=None):
         if series is None:
@@ -202,10 +217,23 @@ class Simulation:
 
     def _record(self, hist, t, dt, its, acc, F, T):
         dem = self.dem
-        hist.append(t, dt, its, x=dem.positions[0], y=dem.positions[1], angle=dem.angles,
-                    vx=dem.velocities[0], vy=dem.velocities[1], omega=dem.angular_velocities,
-                    ax=acc[0], ay=acc[1], Fx=F[0], Fy=F[1], torque=T,
-                    contacts=dem.contact_count())
+        hist.append(
+            t,
+            dt,
+            its,
+            x=dem.positions[0],
+            y=dem.positions[1],
+            angle=dem.angles,
+            vx=dem.velocities[0],
+            vy=dem.velocities[1],
+            omega=dem.angular_velocities,
+            ax=acc[0],
+            ay=acc[1],
+            Fx=F[0],
+            Fy=F[1],
+            torque=T,
+            contacts=dem.contact_count(),
+        )
 
     def _run_dry(self, n_steps, dt, hist, series, bar):
         dem = self.dem
@@ -243,7 +271,7 @@ class Simulation:
         self._write_frame(series, 0.0, x=np.zeros(self.space.N))
         for k in range(n_steps):
             remaining = sc.time.t_end - t
-            # the last step lands on t_end; keep dt (and the factorisation) when only rounding differs
+            # the last step lands on t_end; keep dt (and the factorisation) if only rounding differs
             step = remaining if (k == n_steps - 1 and abs(remaining - dt) > 1e-9 * dt) else dt
             F_ext, T_ext = self._external()
             t0 = time.perf_counter()
@@ -259,8 +287,20 @@ class Simulation:
             w = 0.0 if dt_prev is None else step / dt_prev
             u_guess = u_n if u_prev is None else u_n + w * (u_n - u_prev)
             xi_guess = xi_n if xi_prev is None else xi_n + w * (xi_n - xi_prev)
-            res = self.coupling.step(step, dt_prev, u_n, u_prev, xi_n, xi_prev, F_ext, T_ext,
-                                     t + step, p_guess=p_n, u_guess=u_guess, xi_guess=xi_guess)
+            res = self.coupling.step(
+                step,
+                dt_prev,
+                u_n,
+                u_prev,
+                xi_n,
+                xi_prev,
+                F_ext,
+                T_ext,
+                t + step,
+                p_guess=p_n,
+                u_guess=u_guess,
+                xi_guess=xi_guess,
+            )
             a0, a1, a2 = ts.bdf2_coefficients(step, dt_prev)
             xi_new = res["xi"]
             F_held, T_held = res["force"], res["torque"]
@@ -303,8 +343,10 @@ class Simulation:
         if not np.any(moved > sc.remesh_fraction * self.edge):
             return u_n, u_prev, p_n
         if not sc.effects.remeshing:
-            raise RuntimeError(f"particles moved {moved.max():.3g} m, more than "
-                               f"remesh_fraction x edge length, and effects.remeshing is off")
+            raise RuntimeError(
+                f"particles moved {moved.max():.3g} m, more than "
+                f"remesh_fraction x edge length, and effects.remeshing is off"
+            )
         import meshing
 
         t0 = time.perf_counter()
@@ -326,24 +368,46 @@ class Simulation:
         """Run summary: effects, mesh, final state, wall times, warnings."""
         sc = self.scene
         eff = sc.effects
-        active = {"fluid": not sc.dry, "gravity": eff.gravity,
-                  "convection": (not sc.dry) and eff.convection, "contacts": self.contacts_active,
-                  "rotation": eff.rotation, "remeshing": (not sc.dry) and eff.remeshing}
-        out = {"scene": sc.name, "effects": active, "coupling": None if sc.dry else sc.coupling,
-               "particles": self.dem.n, "steps": len(hist), "t_end": float(hist.t[-1]) if len(hist) else 0.0,
-               "dt": sc.time.dt, "remeshes": self.remeshes, "warnings": list(self.warnings),
-               "wall_time": {k: round(v, 6) for k, v in self.timings.items()}}
+        active = {
+            "fluid": not sc.dry,
+            "gravity": eff.gravity,
+            "convection": (not sc.dry) and eff.convection,
+            "contacts": self.contacts_active,
+            "rotation": eff.rotation,
+            "remeshing": (not sc.dry) and eff.remeshing,
+        }
+        out = {
+            "scene": sc.name,
+            "effects": active,
+            "coupling": None if sc.dry else sc.coupling,
+            "particles": self.dem.n,
+            "steps": len(hist),
+            "t_end": float(hist.t[-1]) if len(hist) else 0.0,
+            "dt": sc.time.dt,
+            "remeshes": self.remeshes,
+            "warnings": list(self.warnings),
+            "wall_time": {k: round(v, 6) for k, v in self.timings.items()},
+        }
         if not sc.dry:
             import meshing
 
             st = meshing.mesh_stats(self.mesh)
-            out["mesh"] = {"kind": sc.mesh.kind, "vertices": st.n_vertices,
-                           "p2_nodes": st.n_p2_nodes, "triangles": st.n_triangles,
-                           "dofs": int(self.space.N), "min_angle": float(st.min_angle)}
+            out["mesh"] = {
+                "kind": sc.mesh.kind,
+                "vertices": st.n_vertices,
+                "p2_nodes": st.n_p2_nodes,
+                "triangles": st.n_triangles,
+                "dofs": int(self.space.N),
+                "min_angle": float(st.min_angle),
+            }
         if len(hist):
-            out["final"] = {"x": hist.x[-1].tolist(), "y": hist.y[-1].tolist(),
-                            "vx": hist.vx[-1].tolist(), "vy": hist.vy[-1].tolist(),
-                            "omega": hist.omega[-1].tolist()}
+            out["final"] = {
+                "x": hist.x[-1].tolist(),
+                "y": hist.y[-1].tolist(),
+                "vx": hist.vx[-1].tolist(),
+                "vy": hist.vy[-1].tolist(),
+                "omega": hist.omega[-1].tolist(),
+            }
         return out
 
     def _finish(self, hist, summary):

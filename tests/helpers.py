@@ -39,7 +39,7 @@ def _mesh(vertices, segments, markers, holes, max_area, names):
 
 
 def annulus(a: float, b: float, n_inner: int, n_outer: int, max_area: float) -> MeshTri:
-    """Mesh between a regular ``n_inner``-gon of radius ``a`` and an ``n_outer``-gon of radius ``b``.
+    """Mesh between a regular ``n_inner``-gon of radius ``a`` and an ``n_outer``-gon, radius ``b``.
 
     Boundaries: ``"inner"`` and ``"outer"``.
     """
@@ -66,8 +66,9 @@ def box(x0, y0, x1, y1, max_area, hole=None) -> MeshTri:
         S = np.vstack([S, _loop(4, n)])
         M = np.concatenate([M, np.full(n, 5)])
         holes = [tuple(hole.mean(axis=1))]
-    mesh = _mesh(V, S, M, holes, max_area,
-                 {1: "left", 2: "right", 3: "bottom", 4: "top", 5: "particle0"})
+    mesh = _mesh(
+        V, S, M, holes, max_area, {1: "left", 2: "right", 3: "bottom", 4: "top", 5: "particle0"}
+    )
     b = mesh.boundaries
     walls = np.concatenate([b[k] for k in ("left", "right", "bottom", "top")])
     return mesh.with_boundaries({"wall": walls})

@@ -17,8 +17,9 @@ N_SEG = 64
 def released():
     """A cylinder at rest inside a fixed concentric cylinder (water)."""
     mesh = annulus(A_IN, B_OUT, N_SEG, 2 * N_SEG, (A_IN * 0.04) ** 2)
-    mesh = mesh.with_boundaries({"particle0": mesh.boundaries["inner"],
-                                 "wall": mesh.boundaries["outer"]})
+    mesh = mesh.with_boundaries(
+        {"particle0": mesh.boundaries["inner"], "wall": mesh.boundaries["outer"]}
+    )
     area = 0.5 * N_SEG * A_IN**2 * np.sin(2 * np.pi / N_SEG)
     return sg.TaylorHood(mesh), area
 
@@ -60,16 +61,30 @@ def test_added_mass_converges_with_smaller_steps(released):
 def test_partitioned_coupling_light_particle_is_detected(released):
     space, area = released
     with pytest.raises(ConvergenceError, match="added-mass"):
-        _release(space, area, 100.0, cls=PartitionedCoupling, subiterations=40, relaxation=1.0,
-                 convection=False)
+        _release(
+            space,
+            area,
+            100.0,
+            cls=PartitionedCoupling,
+            subiterations=40,
+            relaxation=1.0,
+            convection=False,
+        )
 
 
 def test_partitioned_heavy_particle_converges_to_monolithic(released):
-    """With sub-iterations the staggered scheme reaches the monolithic answer for heavy particles."""
+    """With sub-iterations the staggered scheme reaches the monolithic answer (heavy particle)."""
     space, area = released
     mono, _ = _release(space, area, 10000.0, convection=False)
-    part, _ = _release(space, area, 10000.0, cls=PartitionedCoupling, subiterations=14,
-                       relaxation=1.0, convection=False)
+    part, _ = _release(
+        space,
+        area,
+        10000.0,
+        cls=PartitionedCoupling,
+        subiterations=14,
+        relaxation=1.0,
+        convection=False,
+    )
     assert part == pytest.approx(mono, rel=1e-4)
 
 
@@ -83,8 +98,15 @@ def test_faxen_drag_through_coupled_path():
     k = 1 / 3
     mesh = box(-6.0, -1.0, 6.0, 1.0, 0.02, hole=regular_polygon(160, k))
     space = sg.TaylorHood(mesh)
-    c = MonolithicCoupling(space, sg.Fluid(1.0, 1.0), {"wall": (0.0, 0.0)}, np.zeros((2, 1)),
-                           [1e12], [1e12], convection=False)
+    c = MonolithicCoupling(
+        space,
+        sg.Fluid(1.0, 1.0),
+        {"wall": (0.0, 0.0)},
+        np.zeros((2, 1)),
+        [1e12],
+        [1e12],
+        convection=False,
+    )
     xi = np.array([[1.0], [0.0], [0.0]])
     dt = 1e4  # the unsteady term vanishes: one step is the steady Stokes problem
     res = c.step(dt, None, np.zeros(space.nu), None, xi, None, np.zeros((2, 1)), np.zeros(1), dt)

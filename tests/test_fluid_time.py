@@ -50,9 +50,15 @@ def tg_space():
 
 def _run(space, steps, scheme="bdf2", convection=True):
     bc = {k: taylor_green for k in ("left", "right", "bottom", "top")}
-    integ = sg.BDF2Integrator(space, sg.Fluid(1.0, NU), bc, convection=convection,
-                              u0=lambda x, y: taylor_green(x, y, 0.0), scheme=scheme,
-                              newton_tol=1e-12)
+    integ = sg.BDF2Integrator(
+        space,
+        sg.Fluid(1.0, NU),
+        bc,
+        convection=convection,
+        u0=lambda x, y: taylor_green(x, y, 0.0),
+        scheme=scheme,
+        newton_tol=1e-12,
+    )
     for dt in steps:
         x, *_ = integ.try_step(dt)
         integ.commit(x, dt)
@@ -84,8 +90,9 @@ def test_bdf2_order_two_variable_steps(tg_space):
     Taylor-Green is also an exact solution of the unsteady Stokes equations
     (its convection term is a gradient), which keeps this test cheap.
     """
-    orders, d = _orders(tg_space, [1.0, 2.0, 1.0, 2.0], "bdf2", (4, 8, 16, 32, 64),
-                        convection=False)
+    orders, d = _orders(
+        tg_space, [1.0, 2.0, 1.0, 2.0], "bdf2", (4, 8, 16, 32, 64), convection=False
+    )
     assert np.all(np.abs(orders[-2:] - 2.0) < 0.2), (orders, d)
 
 
@@ -97,8 +104,9 @@ def test_backward_euler_order_one(tg_space):
 def test_evolve_matches_exact_solution_and_yields_steps(tg_space):
     bc = {k: taylor_green for k in ("left", "right", "bottom", "top")}
     ts_, infos = [], []
-    for t, flow in sg.evolve(tg_space, sg.Fluid(1.0, NU), bc, dt=0.05, t_end=0.5,
-                             u0=lambda x, y: taylor_green(x, y, 0.0)):
+    for t, flow in sg.evolve(
+        tg_space, sg.Fluid(1.0, NU), bc, dt=0.05, t_end=0.5, u0=lambda x, y: taylor_green(x, y, 0.0)
+    ):
         ts_.append(t)
         infos.append(flow.step)
     assert ts_[-1] == 0.5 and len(ts_) == 10
@@ -111,15 +119,26 @@ def test_evolve_matches_exact_solution_and_yields_steps(tg_space):
     pts = np.array([[0.5, 1.5, 2.5], [1.0, 2.0, 0.7]])
     p = flow.pressure(pts)
     pe = -(np.cos(2 * pts[0]) + np.cos(2 * pts[1])) / 4 * math.exp(-4 * NU * 0.5)
-    assert np.ptp((p - pe)) < 2e-3
+    assert np.ptp(p - pe) < 2e-3
 
 
 def test_adaptive_steps_keep_error_below_tolerance(tg_space):
     bc = {k: taylor_green for k in ("left", "right", "bottom", "top")}
     tol = 1e-5
-    steps = [flow.step for _, flow in sg.evolve(
-        tg_space, sg.Fluid(1.0, NU), bc, dt=1e-3, t_end=1.0, adaptive=True, tol=tol,
-        u0=lambda x, y: taylor_green(x, y, 0.0), velocity_scale=1.0)]
+    steps = [
+        flow.step
+        for _, flow in sg.evolve(
+            tg_space,
+            sg.Fluid(1.0, NU),
+            bc,
+            dt=1e-3,
+            t_end=1.0,
+            adaptive=True,
+            tol=tol,
+            u0=lambda x, y: taylor_green(x, y, 0.0),
+            velocity_scale=1.0,
+        )
+    ]
     errs = [s.error for s in steps if s.error is not None]
     assert max(errs) <= tol
     dts = np.array([s.dt for s in steps])

@@ -26,8 +26,14 @@ def paper():
 def test_single_particle_sinks_with_effects_listed(paper, tmp_path):
     res = Simulation(_short(paper), output_dir=tmp_path).run(progress=False)
     s = res.summary
-    assert s["effects"] == {"fluid": True, "gravity": True, "convection": True,
-                            "contacts": False, "rotation": True, "remeshing": True}
+    assert s["effects"] == {
+        "fluid": True,
+        "gravity": True,
+        "convection": True,
+        "contacts": False,
+        "rotation": True,
+        "remeshing": True,
+    }
     h = res.history
     assert len(h) == 10 and h.t[-1] == pytest.approx(1e-4)
     # early times: the particle accelerates downwards at less than the added-mass limit
@@ -38,8 +44,7 @@ def test_single_particle_sinks_with_effects_listed(paper, tmp_path):
     # momentum balance of the particle: m a = F_fluid + (m - rho_f A) g
     area = np.pi * 0.5e-3**2 * (24 / (2 * np.pi)) * np.sin(2 * np.pi / 24)
     m = rho_p * area
-    np.testing.assert_allclose(m * h.ay[1:, 0], h.Fy[1:, 0] - (m - rho_f * area) * 9.81,
-                               rtol=1e-8)
+    np.testing.assert_allclose(m * h.ay[1:, 0], h.Fy[1:, 0] - (m - rho_f * area) * 9.81, rtol=1e-8)
     # output: VTU series, history and summary
     assert (tmp_path / "flow.pvd").exists() and (tmp_path / "particles.pvd").exists()
     assert json.loads((tmp_path / "summary.json").read_text())["steps"] == 10
@@ -95,8 +100,13 @@ def test_warning_when_convection_off_at_high_reynolds(paper):
 
 def test_remeshing_keeps_velocity_continuous(paper):
     p = replace(paper.particles[0], velocity=(0.0, -0.05))
-    sc = replace(paper, particles=(p,), time=TimeSpec(t_end=2e-3, dt=1e-4),
-                 effects=Effects(gravity=False), remesh_fraction=0.1)
+    sc = replace(
+        paper,
+        particles=(p,),
+        time=TimeSpec(t_end=2e-3, dt=1e-4),
+        effects=Effects(gravity=False),
+        remesh_fraction=0.1,
+    )
     sim = Simulation(sc)
     h = sim.run(progress=False).history
     assert sim.remeshes >= 2
@@ -124,33 +134,47 @@ BAD = [
 
 @pytest.mark.parametrize("patch,field", BAD)
 def test_bad_scene_values_name_the_field(paper, patch, field):
-    base = {"domain": {"box": [0.0, 0.0, 3e-3, 11e-3]},
-            "fluid": {"density": 1000.0, "viscosity": 1e-3},
-            "particles": [{"sides": 24, "radius": 0.5e-3, "center": [1.5e-3, 5.5e-3],
-                           "density": 2650.0}]}
+    base = {
+        "domain": {"box": [0.0, 0.0, 3e-3, 11e-3]},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "particles": [
+            {"sides": 24, "radius": 0.5e-3, "center": [1.5e-3, 5.5e-3], "density": 2650.0}
+        ],
+    }
     base.update(patch)
     with pytest.raises(ValueError, match=field.replace(".", r"\.")):
         Scene.from_dict(base)
 
 
 def test_particle_outside_domain(paper):
-    data = {"domain": {"box": [0.0, 0.0, 3e-3, 11e-3]},
-            "particles": [{"sides": 6, "radius": 1e-3, "center": [0.5e-3, 5e-3], "density": 2650.0}]}
+    data = {
+        "domain": {"box": [0.0, 0.0, 3e-3, 11e-3]},
+        "particles": [{"sides": 6, "radius": 1e-3, "center": [0.5e-3, 5e-3], "density": 2650.0}],
+    }
     with pytest.raises(ValueError, match=r"particles\[0\]"):
         Scene.from_dict(data)
 
 
 def test_cli_bad_input_exit_code(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
-    bad.write_text('[domain]\nbox = [0, 0, 1, 1]\n[time]\ndt = -1\n')
+    bad.write_text("[domain]\nbox = [0, 0, 1, 1]\n[time]\ndt = -1\n")
     assert main(["run", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "time.dt" in err[0]
 
 
 def test_cli_runs_scene(tmp_path, capsys):
-    code = main(["run", str(SCENES / "single_particle.toml"), "--out", str(tmp_path),
-                 "--t-end", "3e-5", "--no-progress"])
+    code = main(
+        [
+            "run",
+            str(SCENES / "single_particle.toml"),
+            "--out",
+            str(tmp_path),
+            "--t-end",
+            "3e-5",
+            "--no-progress",
+        ]
+    )
     assert code == 0
     out = capsys.readouterr().out
     assert "734 P2 nodes" in out and "vy =" in out
@@ -170,13 +194,23 @@ def test_grains_on_the_floor_contacts_and_remeshing(tmp_path):
     """A 2 x 2 block of hexagons just above the floor: contacts, DEM subcycling, remeshing."""
     import meshing
 
-    data = {"domain": {"box": [0.0, 0.0, 6e-3, 4e-3]},
-            "fluid": {"density": 1000.0, "viscosity": 1e-3},
-            "grid": {"nx": 2, "ny": 2, "sides": 6, "radius": 0.5e-3, "spacing": 1.1e-3,
-                     "origin": [2.4e-3, 0.437e-3], "density": 2650.0, "core_ratio": 0.8},
-            "mesh": {"kind": "group", "delta_l": 0.2e-3},
-            "time": {"t_end": 5e-3, "dt": 2e-4},
-            "coupling": {"remesh_fraction": 0.05}}
+    data = {
+        "domain": {"box": [0.0, 0.0, 6e-3, 4e-3]},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "grid": {
+            "nx": 2,
+            "ny": 2,
+            "sides": 6,
+            "radius": 0.5e-3,
+            "spacing": 1.1e-3,
+            "origin": [2.4e-3, 0.437e-3],
+            "density": 2650.0,
+            "core_ratio": 0.8,
+        },
+        "mesh": {"kind": "group", "delta_l": 0.2e-3},
+        "time": {"t_end": 5e-3, "dt": 2e-4},
+        "coupling": {"remesh_fraction": 0.05},
+    }
     sc = Scene.from_dict(data, name="floor")
     sim = Simulation(sc, output_dir=tmp_path)
     assert sim.contacts_active
@@ -189,8 +223,9 @@ def test_grains_on_the_floor_contacts_and_remeshing(tmp_path):
     assert sim.remeshes >= 1
     # the fluid domain is the box minus the cores, exactly, on every new mesh
     cores = sim.dem.core_outlines()
-    area = 6e-3 * 4e-3 - sum(0.5 * np.sum(c[0] * np.roll(c[1], -1) - np.roll(c[0], -1) * c[1])
-                             for c in cores)
+    area = 6e-3 * 4e-3 - sum(
+        0.5 * np.sum(c[0] * np.roll(c[1], -1) - np.roll(c[0], -1) * c[1]) for c in cores
+    )
     assert sim.space.ub.dx.sum() == pytest.approx(area, rel=1e-12)
     assert meshing.mesh_stats(sim.mesh).n_inverted == 0
     # the floor holds the bottom grains: overlap stays a small fraction of their size
