@@ -30,6 +30,7 @@ from threadpoolctl import threadpool_limits
 from . import timestep as ts
 from .dem import DEMSystem
 from .dem.output import write_outlines_vtu
+from .coupled_run import SimulationFailed, run_coupled
 from .history import History
 from .io import PVDSeries, atomic_write
 from .scene import Scene
@@ -100,6 +101,9 @@ class Simulation:
         )
         self.warnings = scene_warnings(scene, self.dem, self.contacts_active)
         self.remeshes = 0
+        self.retries = 0
+        self.failure = None
+        self.last_good = None
         if not scene.dry:
             t0 = time.perf_counter()
             self.mesh = build_mesh(scene, self.dem.core_outlines())
@@ -183,7 +187,13 @@ class Simulation:
                 if sc.dry:
                     self._run_dry(n_steps, dt, hist, series, bar)
                 else:
-                    self._run_coupled(n_steps, dt, hist, series, bar)
+                    run_coupled(self, hist, series, bar)
+        except (SimulationFailed, FloatingPointError) as exc:
+            self.failure = str(exc)
+            if not sc.dry and self.last_good is not None and series is not None:
+                self._write_frame(series, self.last_good.t, x=self.last_good.x)
+            raise SimulationFailed(f"{exc}; history and last good state written to "
+                                   f"{self.output_dir}") from exc
         finally:
             bar.close()
             if not sc.dry:
@@ -255,85 +265,10 @@ class Simulation:
         every = self.scene.vtu_every
         return k == n_steps - 1 or (every > 0 and (k + 1) % every == 0)
 
-    def _run_coupled(self, n_steps, dt, hist, series, bar):
-        dem, sc = self.dem, self.scene
-        nu = self.space.nu
-        u_n = np.zeros(nu)
-        u_prev = None
-        p_n = None
-        xi_n = np.vstack([dem.velocities, dem.angular_velocities[None, :]]).copy()
-        xi_prev = None
-        q_n = np.vstack([dem.positions, dem.angles[None, :]]).copy()
-        q_prev = None
-        dt_prev = None
-        t = 0.0
-        F_held, T_held = np.zeros((2, dem.n)), np.zeros(dem.n)
-        self._write_frame(series, 0.0, x=np.zeros(self.space.N))
-        for k in range(n_steps):
-            remaining = sc.time.t_end - t
-            # the last step lands on t_end; keep dt (and the factorisation) if only rounding differs
-            step = remaining if (k == n_steps - 1 and abs(remaining - dt) > 1e-9 * dt) else dt
-            F_ext, T_ext = self._external()
-            t0 = time.perf_counter()
-            if self.contacts_active:
-                # DEM first, subcycled with the last fluid force held: it gives the
-                # positions and the mean contact force over the step, which then enters
-                # the coupled solve as an external force
-                F_c, T_c, q_dem = self._dem_predictor(step, F_held, T_held)
-                F_ext = F_ext + F_c
-                T_ext = T_ext + T_c
-            self.timings["dem"] += time.perf_counter() - t0
-            # linear extrapolation of the last two states as the Newton initial guess
-            w = 0.0 if dt_prev is None else step / dt_prev
-            u_guess = u_n if u_prev is None else u_n + w * (u_n - u_prev)
-            xi_guess = xi_n if xi_prev is None else xi_n + w * (xi_n - xi_prev)
-            res = self.coupling.step(
-                step,
-                dt_prev,
-                u_n,
-                u_prev,
-                xi_n,
-                xi_prev,
-                F_ext,
-                T_ext,
-                t + step,
-                p_guess=p_n,
-                u_guess=u_guess,
-                xi_guess=xi_guess,
-            )
-            a0, a1, a2 = ts.bdf2_coefficients(step, dt_prev)
-            xi_new = res["xi"]
-            F_held, T_held = res["force"], res["torque"]
-            t0 = time.perf_counter()
-            if self.contacts_active:
-                q_new = q_dem
-            else:
-                q_new = (xi_new - a1 * q_n - (a2 * q_prev if q_prev is not None else 0.0)) / a0
-            dem.positions[...] = q_new[:2]
-            dem.angles[...] = q_new[2]
-            dem.velocities[...] = xi_new[:2]
-            dem.angular_velocities[...] = xi_new[2]
-            dem.t = t + step
-            if self.contacts_active:
-                dem.reset_history()  # velocities were set by the coupled solve
-            self.timings["dem"] += time.perf_counter() - t0
-            acc = a0 * xi_new + a1 * xi_n + (a2 * xi_prev if xi_prev is not None else 0.0)
-            x = res["x"]
-            nu = self.space.nu
-            u_prev, u_n = u_n, x[:nu].copy()
-            p_n = x[nu:].copy()
-            xi_prev, xi_n = xi_n, xi_new
-            q_prev, q_n = q_n, q_new
-            dt_prev = step
-            t += step
-            if not np.all(np.isfinite(x)) or not np.all(np.isfinite(q_new)):
-                raise FloatingPointError(f"step {k + 1} (t={t:.6g}): the solution contains NaN/inf")
-            self._record(hist, t, step, res["iterations"], acc, res["force"], res["torque"])
-            if self._frame_due(k, n_steps):
-                self._write_frame(series, t, x=x)
-            if k < n_steps - 1:
-                u_n, u_prev, p_n = self._maybe_remesh(u_n, u_prev, p_n)
-            bar.update()
+    def _frame_due_time(self, k, t):
+        every = self.scene.vtu_every
+        last = t >= self.scene.time.t_end - 1e-9 * self.scene.time.dt
+        return last or (every > 0 and k % every == 0)
 
     def _maybe_remesh(self, u_n, u_prev, p_n):
         from .motion import FieldTransfer, lag
@@ -385,6 +320,8 @@ class Simulation:
             "t_end": float(hist.t[-1]) if len(hist) else 0.0,
             "dt": sc.time.dt,
             "remeshes": self.remeshes,
+            "retries": self.retries,
+            "failed": self.failure,
             "warnings": list(self.warnings),
             "wall_time": {k: round(v, 6) for k, v in self.timings.items()},
         }

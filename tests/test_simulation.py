@@ -230,3 +230,37 @@ def test_grains_on_the_floor_contacts_and_remeshing(tmp_path):
     assert meshing.mesh_stats(sim.mesh).n_inverted == 0
     # the floor holds the bottom grains: overlap stays a small fraction of their size
     assert min(s[1].min() for s in sim.dem.shadow_outlines()) > -0.05e-3
+
+
+def test_failed_step_is_retried_with_half_the_step(paper, monkeypatch):
+    from skfem_granular.fluid import ConvergenceError
+
+    sim = Simulation(_short(paper, t_end=5e-5))
+    real = sim.coupling.step
+    calls = {"n": 0}
+
+    def flaky(dt, *args, **kw):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise ConvergenceError("injected")
+        return real(dt, *args, **kw)
+
+    monkeypatch.setattr(sim.coupling, "step", flaky)
+    h = sim.run(progress=False).history
+    assert sim.retries == 1
+    assert h.t[-1] == pytest.approx(5e-5, rel=1e-12)
+    assert h.dt[1] == pytest.approx(0.5e-5)  # the retried step
+    assert np.all(h.dt[1:] / h.dt[:-1] <= 2.0 + 1e-12)  # growth back capped
+
+
+def test_run_that_cannot_converge_stops_with_history_written(paper, tmp_path):
+    from skfem_granular.coupled_run import MAX_RETRIES, SimulationFailed
+
+    sim = Simulation(_short(paper, t_end=5e-5), output_dir=tmp_path)
+    sim.coupling.max_iterations = 1  # Navier-Stokes cannot converge in one chord step
+    with pytest.raises(SimulationFailed, match="run stopped at t=0"):
+        sim.run(progress=False)
+    assert sim.retries == MAX_RETRIES
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert "run stopped" in summary["failed"]
+    assert (tmp_path / "history.csv").exists() and (tmp_path / "flow.pvd").exists()

@@ -1,0 +1,153 @@
+"""The time loop of a coupled run: one step at a time, with retries.
+
+:func:`run_coupled` advances a :class:`~skfem_granular.simulation.Simulation`
+with fluid to ``t_end``. A step whose corrector does not converge is retried
+with half the step (at most ``MAX_RETRIES`` times, the DEM state restored
+first); the following steps grow back towards the scene's ``dt`` by at most
+a factor 2 per step (variable-step BDF2 is zero-stable below 1 + sqrt(2)).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import timestep as ts
+from .fluid.errors import ConvergenceError
+
+#: Halvings of a step before the run gives up.
+MAX_RETRIES = 4
+
+
+class SimulationFailed(RuntimeError):
+    """A run stopped early; the history and the last good state were written."""
+
+
+@dataclass
+class CoupledState:
+    """Fluid and particle histories needed by the next BDF2 step."""
+
+    u_n: np.ndarray
+    p_n: np.ndarray | None
+    xi_n: np.ndarray
+    q_n: np.ndarray
+    t: float = 0.0
+    u_prev: np.ndarray | None = None
+    xi_prev: np.ndarray | None = None
+    q_prev: np.ndarray | None = None
+    dt_prev: float | None = None
+    F_held: np.ndarray | None = None
+    T_held: np.ndarray | None = None
+    x: np.ndarray | None = None
+
+
+def initial_state(sim) -> CoupledState:
+    """Fluid at rest, particles as the DEM holds them."""
+    dem = sim.dem
+    return CoupledState(u_n=np.zeros(sim.space.nu), p_n=None,
+                        xi_n=np.vstack([dem.velocities, dem.angular_velocities[None, :]]).copy(),
+                        q_n=np.vstack([dem.positions, dem.angles[None, :]]).copy(),
+                        F_held=np.zeros((2, dem.n)), T_held=np.zeros(dem.n),
+                        x=np.zeros(sim.space.N))
+
+
+def coupled_step(sim, s: CoupledState, step: float):
+    """One coupled BDF2 step of size ``step``; returns the new state and the solver result."""
+    dem = sim.dem
+    F_ext, T_ext = sim._external()
+    t0 = time.perf_counter()
+    if sim.contacts_active:
+        # DEM first, subcycled with the last fluid force held: it gives the positions
+        # and the mean contact force over the step, which enters the coupled solve
+        F_c, T_c, q_dem = sim._dem_predictor(step, s.F_held, s.T_held)
+        F_ext, T_ext = F_ext + F_c, T_ext + T_c
+    sim.timings["dem"] += time.perf_counter() - t0
+    # linear extrapolation of the last two states as the Newton initial guess
+    w = 0.0 if s.dt_prev is None else step / s.dt_prev
+    u_guess = s.u_n if s.u_prev is None else s.u_n + w * (s.u_n - s.u_prev)
+    xi_guess = s.xi_n if s.xi_prev is None else s.xi_n + w * (s.xi_n - s.xi_prev)
+    res = sim.coupling.step(step, s.dt_prev, s.u_n, s.u_prev, s.xi_n, s.xi_prev, F_ext, T_ext,
+                            s.t + step, p_guess=s.p_n, u_guess=u_guess, xi_guess=xi_guess)
+    a0, a1, a2 = ts.bdf2_coefficients(step, s.dt_prev)
+    xi_new = res["xi"]
+    if sim.contacts_active:
+        q_new = q_dem
+    else:
+        q_new = (xi_new - a1 * s.q_n - (a2 * s.q_prev if s.q_prev is not None else 0.0)) / a0
+    x = res["x"]
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(q_new))):
+        raise ConvergenceError(f"step at t={s.t + step:.6g}: the solution contains NaN/inf")
+    acc = a0 * xi_new + a1 * s.xi_n + (a2 * s.xi_prev if s.xi_prev is not None else 0.0)
+    nu = sim.space.nu
+    new = CoupledState(u_n=x[:nu].copy(), p_n=x[nu:].copy(), xi_n=xi_new, q_n=q_new,
+                       t=s.t + step, u_prev=s.u_n, xi_prev=s.xi_n, q_prev=s.q_n, dt_prev=step,
+                       F_held=res["force"], T_held=res["torque"], x=x)
+    return new, res, acc
+
+
+def _commit_particles(sim, s: CoupledState):
+    dem = sim.dem
+    dem.positions[...] = s.q_n[:2]
+    dem.angles[...] = s.q_n[2]
+    dem.velocities[...] = s.xi_n[:2]
+    dem.angular_velocities[...] = s.xi_n[2]
+    dem.t = s.t
+    if sim.contacts_active:
+        dem.reset_history()  # velocities were set by the coupled solve
+
+
+def run_coupled(sim, hist, series, bar) -> CoupledState:
+    """Advance to ``t_end`` with retries; returns the last good state.
+
+    Raises
+    ------
+    SimulationFailed
+        When a step does not converge after :data:`MAX_RETRIES` halvings;
+        the caller writes the history and the last good state.
+    """
+    sc = sim.scene
+    t_end, dt = sc.time.t_end, sc.time.dt
+    s = initial_state(sim)
+    sim.last_good = s
+    sim._write_frame(series, 0.0, x=s.x)
+    eps = 1e-9 * dt
+    k = 0
+    step_target = dt
+    while s.t < t_end - eps:
+        step = min(step_target, dt)
+        if s.dt_prev is not None:
+            step = min(step, 2.0 * s.dt_prev)
+        remaining = t_end - s.t
+        # land on t_end; keep the step (and the factorisation) if only rounding differs
+        if remaining < step and abs(remaining - step) > eps:
+            step = remaining
+        saved = sim.dem.save_state() if sim.contacts_active else None
+        for attempt in range(MAX_RETRIES + 1):
+            try:
+                new, res, acc = coupled_step(sim, s, step)
+                break
+            except ConvergenceError as exc:
+                if saved is not None:
+                    sim.dem.restore_state(saved)
+                if attempt == MAX_RETRIES:
+                    raise SimulationFailed(
+                        f"run stopped at t={s.t:.6g} s: {exc} (after {MAX_RETRIES} step "
+                        f"halvings down to dt={step:.3g} s)") from exc
+                sim.retries += 1
+                step *= 0.5
+        step_target = min(dt, 2.0 * step)
+        s = new
+        if abs(s.t - t_end) <= eps:
+            s.t = t_end
+        _commit_particles(sim, s)
+        sim.last_good = s
+        k += 1
+        sim._record(hist, s.t, step, res["iterations"], acc, res["force"], res["torque"])
+        if sim._frame_due_time(k, s.t):
+            sim._write_frame(series, s.t, x=s.x)
+        if s.t < t_end - eps:
+            s.u_n, s.u_prev, s.p_n = sim._maybe_remesh(s.u_n, s.u_prev, s.p_n)
+        bar.update(1)
+    return s
