@@ -21,7 +21,7 @@ from .fluid.errors import ConvergenceError
 MAX_RETRIES = 4
 
 
-class SimulationFailed(RuntimeError):
+class SimulationError(RuntimeError):
     """A run stopped early; the history and the last good state were written."""
 
 
@@ -55,7 +55,6 @@ def initial_state(sim) -> CoupledState:
 
 def coupled_step(sim, s: CoupledState, step: float):
     """One coupled BDF2 step of size ``step``; returns the new state and the solver result."""
-    dem = sim.dem
     F_ext, T_ext = sim._external()
     t0 = time.perf_counter()
     if sim.contacts_active:
@@ -103,7 +102,7 @@ def run_coupled(sim, hist, series, bar) -> CoupledState:
 
     Raises
     ------
-    SimulationFailed
+    SimulationError
         When a step does not converge after :data:`MAX_RETRIES` halvings;
         the caller writes the history and the last good state.
     """
@@ -132,7 +131,7 @@ def run_coupled(sim, hist, series, bar) -> CoupledState:
                 if saved is not None:
                     sim.dem.restore_state(saved)
                 if attempt == MAX_RETRIES:
-                    raise SimulationFailed(
+                    raise SimulationError(
                         f"run stopped at t={s.t:.6g} s: {exc} (after {MAX_RETRIES} step "
                         f"halvings down to dt={step:.3g} s)") from exc
                 sim.retries += 1

@@ -27,10 +27,9 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from . import timestep as ts
+from .coupled_run import SimulationError, run_coupled
 from .dem import DEMSystem
 from .dem.output import write_outlines_vtu
-from .coupled_run import SimulationFailed, run_coupled
 from .history import History
 from .io import PVDSeries, atomic_write
 from .scene import Scene
@@ -188,11 +187,11 @@ class Simulation:
                     self._run_dry(n_steps, dt, hist, series, bar)
                 else:
                     run_coupled(self, hist, series, bar)
-        except (SimulationFailed, FloatingPointError) as exc:
+        except (SimulationError, FloatingPointError) as exc:
             self.failure = str(exc)
             if not sc.dry and self.last_good is not None and series is not None:
                 self._write_frame(series, self.last_good.t, x=self.last_good.x)
-            raise SimulationFailed(f"{exc}; history and last good state written to "
+            raise SimulationError(f"{exc}; history and last good state written to "
                                    f"{self.output_dir}") from exc
         finally:
             bar.close()

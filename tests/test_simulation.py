@@ -254,11 +254,11 @@ def test_failed_step_is_retried_with_half_the_step(paper, monkeypatch):
 
 
 def test_run_that_cannot_converge_stops_with_history_written(paper, tmp_path):
-    from skfem_granular.coupled_run import MAX_RETRIES, SimulationFailed
+    from skfem_granular.coupled_run import MAX_RETRIES, SimulationError
 
     sim = Simulation(_short(paper, t_end=5e-5), output_dir=tmp_path)
     sim.coupling.max_iterations = 1  # Navier-Stokes cannot converge in one chord step
-    with pytest.raises(SimulationFailed, match="run stopped at t=0"):
+    with pytest.raises(SimulationError, match="run stopped at t=0"):
         sim.run(progress=False)
     assert sim.retries == MAX_RETRIES
     summary = json.loads((tmp_path / "summary.json").read_text())
