@@ -45,25 +45,49 @@ class ConvectionKernel:
         counts = np.bincount(unique // self.nu, minlength=self.nu)
         self._indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
         self._vdofs = vdofs
+        # element-major tables for batched matrix products (numpy.matmul over elements):
+        # _tab[e] stacks the values, x- and y-derivatives of the 6 basis functions at the
+        # quadrature points, (3 nq, 6); _wphi[e] = phi_i(q) dx(q), (6, nq)
+        nq = self.dx.shape[1]
+        self._nq = nq
+        self._tab = np.ascontiguousarray(np.concatenate(
+            [self.phi.transpose(1, 2, 0), self.dphi[:, 0].transpose(1, 2, 0),
+             self.dphi[:, 1].transpose(1, 2, 0)], axis=1))  # (nel, 3 nq, 6)
+        self._wphi = np.ascontiguousarray((self.phi * self.dx).transpose(1, 0, 2))  # (nel, 6, nq)
+        self._scatter_idx = (2 * self.edofs.T[:, :, None] + np.arange(2)).ravel()  # (nel, 6, 2)
 
     def _fields(self, a: np.ndarray):
         """Values ``(2, nel, nq)`` and gradients ``(2, 2, nel, nq)`` of P2 field ``a``."""
-        A = a.reshape(-1, 2)[self.edofs]  # (6, nel, 2)
-        val = np.einsum("iec,ieq->ceq", A, self.phi)
-        grd = np.einsum("iec,ideq->cdeq", A, self.dphi)
+        F = self._element_fields(a)
+        nq = self._nq
+        val = F[:, :nq].transpose(2, 0, 1)
+        grd = np.stack([F[:, nq:2 * nq], F[:, 2 * nq:]]).transpose(3, 0, 1, 2)
         return val, grd
 
+    def _element_fields(self, a: np.ndarray) -> np.ndarray:
+        """``(nel, 3 nq, 2)``: value, x- and y-derivative of both components of ``a``."""
+        A = a.reshape(-1, 2)[self.edofs.T]  # (nel, 6, 2)
+        return np.matmul(self._tab, A)
+
+    def _advect(self, F_wind: np.ndarray, F_field: np.ndarray) -> np.ndarray:
+        """``(w . grad) b`` at the quadrature points, ``(nel, nq, 2)``."""
+        nq = self._nq
+        w = F_wind[:, :nq]
+        return F_field[:, nq:2 * nq] * w[:, :, 0:1] + F_field[:, 2 * nq:] * w[:, :, 1:2]
+
     def _scatter(self, local: np.ndarray) -> np.ndarray:
-        """Sum element vectors ``(2, 6, nel)`` into a global vector."""
-        idx = 2 * self.edofs[None, :, :] + np.arange(2)[:, None, None]
-        return np.bincount(idx.ravel(), weights=local.ravel(), minlength=self.nu)
+        """Sum element vectors ``(nel, 6, 2)`` into a global vector."""
+        return np.bincount(self._scatter_idx, weights=local.ravel(), minlength=self.nu)
+
+    def _test(self, adv: np.ndarray) -> np.ndarray:
+        """Global vector of ``(adv, v_i)`` for ``adv`` ``(nel, nq, 2)`` at the quadrature points."""
+        return self._scatter(np.matmul(self._wphi, adv))
 
     def apply(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vector of ``((a . grad) b, v_i)`` for all test functions ``v_i``."""
-        va, ga = self._fields(a)
-        gb = ga if b is a else self._fields(b)[1]
-        adv = np.einsum("cdeq,deq->ceq", gb, va) * self.dx
-        return self._scatter(np.einsum("ceq,ieq->cie", adv, self.phi))
+        Fa = self._element_fields(a)
+        Fb = Fa if b is a else self._element_fields(b)
+        return self._test(self._advect(Fa, Fb))
 
     def residual(self, u: np.ndarray) -> np.ndarray:
         """``N(u) u``."""
@@ -71,10 +95,9 @@ class ConvectionKernel:
 
     def jacobian_action(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
         """Newton linearisation at ``u`` applied to ``du``: ``N(u) du + N(du) u``."""
-        vu, gu = self._fields(u)
-        vd, gd = self._fields(du)
-        adv = (np.einsum("cdeq,deq->ceq", gd, vu) + np.einsum("cdeq,deq->ceq", gu, vd)) * self.dx
-        return self._scatter(np.einsum("ceq,ieq->cie", adv, self.phi))
+        Fu = self._element_fields(u)
+        Fd = self._element_fields(du)
+        return self._test(self._advect(Fu, Fd) + self._advect(Fd, Fu))
 
     def jacobian(self, u: np.ndarray, newton: bool = True) -> sp.csr_matrix:
         """Matrix of the convection term linearised at ``u``.
@@ -87,17 +110,23 @@ class ConvectionKernel:
             ``True``: full Newton Jacobian ``N(u) . + N(.) u``; ``False``:
             Picard (Oseen) matrix ``N(u)``.
         """
-        vu, gu = self._fields(u)
-        wphi = self.phi * self.dx  # (6, nel, nq)
+        F = self._element_fields(u)  # (nel, 3 nq, 2)
+        nq, tab, wphi = self._nq, self._tab, self._wphi
+        nel, nloc = wphi.shape[0], wphi.shape[1]
         # term 1: delta_cd phi_i (u . grad phi_j)
-        ugphi = np.einsum("deq,jdeq->jeq", vu, self.dphi)
-        T1 = np.einsum("ieq,jeq->eij", wphi, ugphi)
-        nel, nloc = T1.shape[0], T1.shape[1]
-        local = np.zeros((nel, nloc, 2, nloc, 2))
-        local[:, :, 0, :, 0] = T1
-        local[:, :, 1, :, 1] = T1
+        ugphi = tab[:, nq:2 * nq] * F[:, :nq, 0:1] + tab[:, 2 * nq:] * F[:, :nq, 1:2]
+        T1 = np.matmul(wphi, ugphi)  # (nel, i, j)
         if newton:
-            # term 2: phi_i phi_j d_d u_c
-            local += np.einsum("ieq,jeq,cdeq->eicjd", wphi, self.phi, gu)
+            # term 2: phi_i phi_j d_d u_c, as (nel, i, j, c, d)
+            G = np.stack([F[:, nq:2 * nq], F[:, 2 * nq:]], axis=-1)  # (nel, q, c, d)
+            X = tab[:, :nq, :, None, None] * G[:, :, None, :, :]  # (nel, q, j, c, d)
+            T2 = np.matmul(wphi, X.reshape(nel, nq, 4 * nloc)).reshape(nel, nloc, nloc, 2, 2)
+            T2[..., 0, 0] += T1
+            T2[..., 1, 1] += T1
+            local = T2.transpose(0, 1, 3, 2, 4)  # (nel, i, c, j, d)
+        else:
+            local = np.zeros((nel, nloc, 2, nloc, 2))
+            local[:, :, 0, :, 0] = T1
+            local[:, :, 1, :, 1] = T1
         data = np.bincount(self._slot, weights=local.ravel(), minlength=self._indices.size)
         return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.nu, self.nu))
