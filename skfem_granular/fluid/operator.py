@@ -9,6 +9,8 @@ DOFs only while the fixed ones hold their prescribed values in ``x``.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -69,6 +71,8 @@ class NavierStokesOperator:
         self.free = np.flatnonzero(mask)
         self.nu_free = int(np.count_nonzero(self.free < nu))
         self._zero_p = sp.csr_matrix((space.np_, space.np_))
+        self._velocity_blocks = {}  # c_mass -> c rho M + eta K (the last two kept)
+        self._conv_positions = None  # (A_uu, positions of its entries in the convection pattern)
 
     def _body_force(self, body_force) -> np.ndarray:
         from skfem import asm
@@ -91,28 +95,84 @@ class NavierStokesOperator:
         return asm(form, sp_.ub, f=val)
 
     # blocks -----------------------------------------------------------------
+    @cached_property
+    def _Bt(self) -> sp.csr_matrix:
+        """``B^T`` in CSR format (sorted indices), built once."""
+        return sp.csr_matrix(self.space.B.T)
+
+    @cached_property
+    def _B_lower(self) -> sp.csr_matrix:
+        """The lower block row ``[B, 0]`` of the saddle-point matrix."""
+        return sp.hstack([sp.csr_matrix(self.space.B), self._zero_p], format="csr")
+
     def velocity_block(self, c_mass: float = 0.0) -> sp.csr_matrix:
-        """Linear velocity block ``c rho M + eta K``."""
+        """Linear velocity block ``c rho M + eta K`` (cached per ``c_mass``; do not modify)."""
         if c_mass == 0.0:
             return self.K
-        return (c_mass * self.fluid.density) * self.space.M + self.K
+        A = self._velocity_blocks.get(c_mass)
+        if A is None:
+            A = (c_mass * self.fluid.density) * self.space.M + self.K
+            if len(self._velocity_blocks) >= 2:
+                self._velocity_blocks.pop(next(iter(self._velocity_blocks)))
+            self._velocity_blocks[c_mass] = A
+        return A
 
     def matrix(self, A_uu: sp.spmatrix) -> sp.csr_matrix:
         """Full saddle-point matrix ``[[A, B^T], [B, 0]]``."""
-        B = self.space.B
-        return sp.bmat([[A_uu, B.T], [B, self._zero_p]], format="csr")
+        A = sp.csr_matrix(A_uu)
+        if not A.has_canonical_format:
+            A = A.copy()
+            A.sum_duplicates()
+        # stacking CSR blocks along rows and columns keeps every stored entry in sorted
+        # order: the same matrix as sp.bmat (which goes through COO), several times faster
+        top = sp.hstack([A, self._Bt], format="csr")
+        return sp.vstack([top, self._B_lower], format="csr")
 
     def reduced(self, J: sp.spmatrix) -> sp.csr_matrix:
         """Restriction of a full matrix to the free DOFs."""
         J = sp.csr_matrix(J)
         return J[self.free][:, self.free]
 
+    def _plus_convection(self, A: sp.csr_matrix, N: sp.csr_matrix) -> sp.csr_matrix:
+        """``A + N`` for ``N`` on the convection kernel's pattern (a superset of ``A``'s).
+
+        The same matrix as scipy's sparse sum (values ``a + n``, exact zeros dropped),
+        without merging the two patterns on every call.
+        """
+        kern = self.space.convection
+        if self._conv_positions is None or self._conv_positions[0] is not A:
+            pos = None
+            if A.has_canonical_format and A.shape == N.shape:
+                n = A.shape[0]
+                rows_n = np.repeat(np.arange(n, dtype=np.int64), np.diff(kern._indptr))
+                keys_n = rows_n * n + kern._indices
+                rows_a = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
+                keys_a = rows_a * n + A.indices
+                pos = np.searchsorted(keys_n, keys_a)
+                pos = np.minimum(pos, keys_n.size - 1)
+                if not np.array_equal(keys_n[pos], keys_a):
+                    pos = None
+            self._conv_positions = (A, pos)
+        pos = self._conv_positions[1]
+        if pos is None or N.indptr is not kern._indptr:
+            return A + N
+        data = N.data.copy()
+        data[pos] = A.data + data[pos]
+        keep = data != 0
+        if keep.all():
+            return sp.csr_matrix((data, kern._indices, kern._indptr), shape=N.shape)
+        kept = np.concatenate(([0], np.cumsum(keep)))
+        indptr = kept[kern._indptr].astype(kern._indptr.dtype)
+        return sp.csr_matrix((data[keep], kern._indices[keep], indptr), shape=N.shape)
+
     def jacobian(self, x: np.ndarray, c_mass: float = 0.0, newton: bool = True) -> sp.csr_matrix:
         """Full Jacobian of :meth:`residual` at ``x`` (Picard matrix if ``newton=False``)."""
         A = self.velocity_block(c_mass)
         if self.convection:
             u = x[: self.space.nu]
-            A = A + self.fluid.density * self.space.convection.jacobian(u, newton=newton)
+            N = self.space.convection.jacobian(u, newton=newton)
+            N.data *= self.fluid.density
+            A = self._plus_convection(A, N)
         return self.matrix(A)
 
     # residuals ----------------------------------------------------------------
@@ -122,7 +182,7 @@ class NavierStokesOperator:
         sp_ = self.space
         u, p = sp_.split(x)
         A = self.velocity_block(c_mass) if A_uu is None else A_uu
-        ru = A @ u + sp_.B.T @ p - self.f
+        ru = A @ u + self._Bt @ p - self.f
         if rhs_u is not None:
             ru = ru - rhs_u
         if self.convection:
@@ -142,9 +202,13 @@ class NavierStokesOperator:
         if self.pinned:
             sp_ = self.space
             p = x[sp_.nu:]
-            w = np.asarray(sp_.Mp.sum(axis=0)).ravel()
+            w = self._pressure_weights
             p -= (w @ p) / w.sum()
         return x
+
+    @cached_property
+    def _pressure_weights(self) -> np.ndarray:
+        return np.asarray(self.space.Mp.sum(axis=0)).ravel()
 
     def solver_blocks(self, c_mass: float = 0.0) -> dict:
         """Extra blocks for the Krylov preconditioner, restricted to free DOFs."""
