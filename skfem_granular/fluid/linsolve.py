@@ -64,14 +64,26 @@ class SaddlePointSolver:
 
     def _scaled(self, A: sp.spmatrix, nu: int) -> sp.csc_matrix:
         A = sp.csr_matrix(A)
+        if not A.has_canonical_format:
+            A = A.copy()
+            A.sum_duplicates()
         diag = np.abs(A.diagonal()[:nu])
-        Bt = A[:nu, nu:]
-        bmax = abs(Bt).max() if Bt.nnz else 1.0
+        rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+        upper_right = (rows < nu) & (A.indices >= nu)  # the B^T block
+        bmax = np.abs(A.data[upper_right]).max() if upper_right.any() else 1.0
         s = (np.median(diag[diag > 0]) / bmax) if np.any(diag > 0) and bmax > 0 else 1.0
         self._scale = np.ones(A.shape[0])
         self._scale[nu:] = s
-        D = sp.diags(self._scale)
-        return (D @ A @ D).tocsc()
+        # D A D with D = diag(scale), entry by entry as the sparse product computes it
+        # ((d_i a_ij) d_j, exact zeros dropped), without two sparse matrix products
+        data = (self._scale[rows] * A.data) * self._scale[A.indices]
+        keep = data != 0
+        if keep.all():
+            DAD = sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
+        else:
+            kept = np.concatenate(([0], np.cumsum(keep)))
+            DAD = sp.csr_matrix((data[keep], A.indices[keep], kept[A.indptr]), shape=A.shape)
+        return DAD.tocsc()
 
     def factorize(self, A: sp.spmatrix, nu: int, **blocks) -> SaddlePointSolver:
         """Prepare to solve with ``A`` (velocity unknowns first, ``nu`` of them)."""
