@@ -213,6 +213,41 @@ def test_bad_boundary_values(small, spec, match):
         sg.solve_steady(mesh, sg.Fluid(), {"inner": spec, "outer": (0, 0)})
 
 
+def test_closed_domain_with_net_flux_is_refused():
+    """Div u = 0 needs zero net flux when every boundary has velocity data.
+
+    Inflow u = y (1 - y) through the left side of [0, 3] x [0, 1] carries 1/6
+    per unit depth; with the outlet closed the data are impossible.
+    """
+    mesh = box(0.0, 0.0, 3.0, 1.0, 0.05)
+
+    def profile(x, y):
+        return y * (1 - y), 0 * y
+
+    walls = {"top": (0, 0), "bottom": (0, 0)}
+    msg = r"net outflow of -0.166667 per unit depth \(100.0% of the total"
+    with pytest.raises(ValueError, match=msg):
+        sg.solve_steady(mesh, sg.Fluid(), {"left": profile, "right": (0, 0), **walls})
+    # balanced (the same profile leaves on the right) or open outlet: accepted
+    for bc in ({"left": profile, "right": profile, **walls}, {"left": profile, **walls}):
+        flow = sg.solve_steady(mesh, sg.Fluid(), bc)
+        pts = np.array([[1.5, 2.0], [0.3, 0.8]])
+        np.testing.assert_allclose(flow.velocity(pts), profile(*pts), atol=1e-12)
+    # rigid motions of the walls carry no flux
+    ring = annulus(1.0, 2.0, 16, 32, 0.05)
+    sg.solve_steady(ring, sg.Fluid(), {"inner": sg.RigidMotion((1.0, 2.0), 3.0, (0.1, 0.2)),
+                                       "outer": sg.RigidMotion((0.0, 1.0), -1.0)})
+
+    def growing(x, y, t):  # a translation, plus a radial source switched on at t = 0.1
+        s = max(t - 0.1, 0.0)
+        return 1.0 + s * x, s * y
+
+    with pytest.raises(ValueError, match=r"the data at t = 0\.1\d* carry a net outflow"):
+        for _ in sg.evolve(ring, sg.Fluid(), {"inner": growing, "outer": (0, 0)}, dt=0.05,
+                           t_end=0.3, convection=False):
+            pass
+
+
 def test_bad_body_force_is_named(small):
     mesh, _ = small
     with pytest.raises(ValueError, match=r"^body_force"):
