@@ -32,8 +32,12 @@ class PartitionedCoupling:
     ----------
     subiterations : int
         Fluid solves per step (1 = the plain explicit scheme).
-    relaxation : float
-        Under-relaxation of the particle velocity between sub-iterations.
+    relaxation : float or "aitken"
+        Under-relaxation of the particle velocity between sub-iterations;
+        ``"aitken"``: dynamic Aitken Delta^2 relaxation.
+    coupling_tol : float
+        Sub-iterations stop when the particle velocity changes by less than
+        this, relative to the velocity scale.
     """
 
     def __init__(
@@ -48,8 +52,9 @@ class PartitionedCoupling:
         convection: bool = True,
         rotation: bool = True,
         solver: str = "auto",
-        subiterations: int = 1,
-        relaxation: float = 0.5,
+        subiterations: int = 20,
+        relaxation="aitken",
+        coupling_tol: float = 1e-8,
         newton_tol: float = 1e-9,
         max_iterations: int = 15,
     ):
@@ -69,7 +74,10 @@ class PartitionedCoupling:
         self.walls = DirichletData(space, walls) if walls else None
         self.particle_dofs = [space.boundary_dofs(n) for n in names]
         self.subiterations = int(subiterations)
-        self.relaxation = float(relaxation)
+        if relaxation != "aitken" and not 0.0 < float(relaxation) <= 1.0:
+            raise ValueError(f"relaxation = {relaxation!r}: must be 'aitken' or in (0, 1]")
+        self.relaxation = relaxation
+        self.coupling_tol = float(coupling_tol)
         self.newton_tol = newton_tol
         self.max_iterations = max_iterations
         self.solver = make_solver(solver, self.op.free.size)
@@ -164,6 +172,9 @@ class PartitionedCoupling:
         its = 0
         t0 = time.perf_counter()
         changes = []
+        omega = 0.5 if self.relaxation == "aitken" else float(self.relaxation)
+        r_old = None
+        converged = False
         for sub in range(max(1, self.subiterations)):
             self._boundary_values(x, xi, t_new)
             try:
@@ -175,13 +186,29 @@ class PartitionedCoupling:
             xi_new = ((ext + np.vstack([F, T[None, :]])) / m3 - hist_xi) / a0
             if not self.rotation:
                 xi_new[2] = 0.0
-            changes.append(float(np.abs(xi_new - xi).max()))
+            r = (xi_new - xi).ravel()
+            changes.append(float(np.abs(r).max()))
             # the fixed-point map amplifies by ~C_a rho_f / rho_p: growing changes = divergence
             if not np.all(np.isfinite(xi_new)) or (
                 len(changes) >= 4 and changes[-1] > changes[-2] > changes[-3] > changes[-4]
             ):
                 self._diverged(t_new, xi_new)
-            xi = xi_new if sub == 0 else self.relaxation * xi_new + (1 - self.relaxation) * xi
+            if changes[-1] <= self.coupling_tol * max(scale, float(np.abs(xi_new).max())):
+                converged = True
+                break
+            if sub == 0 and self.relaxation != "aitken":
+                xi = xi_new
+                continue
+            if self.relaxation == "aitken" and r_old is not None:
+                dr = r - r_old
+                omega = -omega * float(r_old @ dr) / max(float(dr @ dr), 1e-300)
+            r_old = r
+            xi = xi + omega * r.reshape(xi.shape)
+        if self.subiterations > 1 and not converged:
+            raise ConvergenceError(
+                f"partitioned coupling at t={t_new:.6g}: not converged in {self.subiterations} "
+                f"sub-iterations (last change {changes[-1]:.2e}); the added-mass effect of light "
+                "particles: use the monolithic coupling")
         self.timings["solve"] += time.perf_counter() - t0
         self._last = (rhs_u, x)
         return {"x": x, "xi": xi_new, "force": F, "torque": T, "iterations": its}

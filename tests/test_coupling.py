@@ -114,3 +114,13 @@ def test_faxen_drag_through_coupled_path():
     assert -res["force"][0, 0] == pytest.approx(faxen(k), rel=3e-3)
     # no torque on a centred cylinder, up to the mesh's asymmetry (relative to F a)
     assert abs(res["torque"][0]) < 1e-4 * faxen(k) * k
+
+
+@pytest.mark.parametrize("ratio", [1.1, 0.5])
+def test_partitioned_with_aitken_relaxation_reaches_monolithic(released, ratio):
+    """Aitken relaxation makes the sub-iterations converge where plain iteration diverges."""
+    space, area = released
+    mono, _ = _release(space, area, 1000.0 * ratio, convection=False)
+    part, _ = _release(space, area, 1000.0 * ratio, cls=PartitionedCoupling, subiterations=30,
+                       relaxation="aitken", convection=False)
+    assert part == pytest.approx(mono, rel=1e-6)
