@@ -98,6 +98,25 @@ def test_points_just_outside_are_snapped_onto_the_boundary(exact_flow):
                                atol=1e3 * EPS)
 
 
+def test_snapping_near_a_small_finely_meshed_particle():
+    """A 32-gon of radius 1e-3 in the unit box: elements near it are ~2e-4 wide.
+
+    1e-9 of the mesh's size is 5e-6 of those elements, beyond the relative
+    tolerance; it is snapped by the absolute one (1e-9 times the diameter).
+    """
+    hole = regular_polygon(32, 1e-3, center=(0.5, 0.5))
+    loc = PointLocator(box(0.0, 0.0, 1.0, 1.0, 0.01, hole=hole))
+    assert loc.abs_tol == pytest.approx(1e-9 * np.sqrt(2))
+    mid = (hole[:, :1] + hole[:, 1:2]) / 2
+    into_hole = (0.5 - mid) / np.linalg.norm(0.5 - mid)
+    cells, X = loc.locate(mid + 1e-9 * into_hole)
+    P = loc.mesh.p[:, loc.mesh.t[:, cells]]
+    snapped = P[:, 0] + (P[:, 1] - P[:, 0]) * X[0] + (P[:, 2] - P[:, 0]) * X[1]
+    assert np.linalg.norm(snapped - mid) < 1e-9 * np.sqrt(2)
+    with pytest.raises(ValueError, match="lies outside the mesh"):
+        loc.locate(mid + 1e-8 * into_hole)
+
+
 @pytest.mark.parametrize("point", [(0.5, 0.5), (1.5, 0.2), (0.5 + 0.3 * np.cos(np.pi / 6) - 1e-3,
                                                             0.5)])
 def test_points_clearly_outside_raise_and_name_the_point(exact_flow, point):

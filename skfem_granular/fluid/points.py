@@ -20,6 +20,9 @@ from scipy.spatial import cKDTree
 
 from .._validate import points_array, positive
 
+#: Points closer to the mesh than this times its diameter are always snapped.
+ABS_TOL = 1e-9
+
 
 class PointLocator:
     """Find the triangle of ``mesh`` that contains each point.
@@ -39,7 +42,11 @@ class PointLocator:
         det = e1[0] * e2[1] - e1[1] * e2[0]
         # inverse of [e1 e2] per element
         self._inv = np.array([[e2[1], -e2[0]], [-e1[1], e1[0]]]) / det
+        self._e = np.stack([e1, e2])  # (2 edges, 2 coordinates, nel)
         self._tree = cKDTree(P.mean(axis=1).T)
+        #: Points closer than this to the mesh are always snapped (round-off
+        #: level for coordinates of the mesh's size, however fine the elements).
+        self.abs_tol = ABS_TOL * float(np.hypot(*np.ptp(mesh.p, axis=1)))
 
     def locate(self, points, tol: float = 1e-6, name: str = "points"):
         """Element index and reference coordinates ``(2, n)`` of each point.
@@ -50,7 +57,8 @@ class PointLocator:
             Points to locate.
         tol : float
             Points outside every element by at most ``tol`` times the local
-            element size are snapped to the nearest element.
+            element size, or by at most :attr:`abs_tol` (``1e-9`` times the
+            mesh's diameter), are snapped to the nearest element.
         name : str
             Name used in error messages.
 
@@ -91,27 +99,35 @@ class PointLocator:
         # far from all of the nearest elements by centroid: in a large element
         # next to many small ones, or outside; test every element (in chunks,
         # so that the first point outside stops the search)
-        far = np.flatnonzero((cells < 0) & (-best > tol))
+        far = np.flatnonzero((cells < 0) & ~self._near(x, nearest, X, best, tol))
         for idx, c_all, ref_all, lam_all in self._search_all(x, far):
             better = lam_all > best[idx]
             upd = idx[better]
             best[upd], nearest[upd], X[:, upd] = lam_all[better], c_all[better], ref_all[:, better]
-            out = idx[-best[idx] > tol]
+            out = idx[~self._near(x[:, idx], nearest[idx], X[:, idx], best[idx], tol)]
             if out.size:
                 i = out[0]
                 raise ValueError(f"{name}[:, {i}] = ({x[0, i]:.6g}, {x[1, i]:.6g}) lies outside "
-                                 f"the mesh (farther than tol = {tol:g} element sizes)")
+                                 f"the mesh (farther than tol = {tol:g} element sizes and "
+                                 f"{self.abs_tol:.3g})")
             found = idx[best[idx] >= -1e-12]
             cells[found] = nearest[found]
         missing = np.flatnonzero(cells < 0)
-        if missing.size:  # within tol of an element: snap onto it
+        if missing.size:  # close to an element: snap onto it
             cells[missing] = nearest[missing]
-            r = np.clip(X[:, missing], 0.0, 1.0)
-            s = r.sum(axis=0)
-            over = s > 1.0
-            r[:, over] /= s[over]
-            X[:, missing] = r
+            X[:, missing] = _clamp(X[:, missing])
         return cells, X
+
+    def _near(self, x, cells, X, lam, tol):
+        """Whether points with best element ``cells`` (reference ``X``) may be snapped."""
+        near = -lam <= tol
+        check = np.flatnonzero(~near & (cells >= 0))
+        if check.size:
+            c = cells[check]
+            r = _clamp(X[:, check])
+            snapped = self._p0[:, c] + np.einsum("kim,km->im", self._e[:, :, c], r)
+            near[check] = np.hypot(*(snapped - x[:, check])) <= self.abs_tol
+        return near
 
     def _search_all(self, x: np.ndarray, which: np.ndarray, chunk_entries: int = 2_000_000):
         """Test points ``x[:, which]`` against every element, in chunks.
@@ -129,6 +145,15 @@ class PointLocator:
             j = np.argmax(lam, axis=1)
             rows = np.arange(idx.size)
             yield idx, j, ref[:, rows, j], lam[rows, j]
+
+
+def _clamp(X: np.ndarray) -> np.ndarray:
+    """Reference coordinates ``(2, n)`` moved into the reference triangle."""
+    r = np.clip(X, 0.0, 1.0)
+    s = r.sum(axis=0)
+    over = s > 1.0
+    r[:, over] /= s[over]
+    return r
 
 
 def evaluation_matrix(basis, cells: np.ndarray, X: np.ndarray) -> sp.csr_matrix:
