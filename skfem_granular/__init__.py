@@ -15,9 +15,13 @@ from .fluid import (
     TaylorHood,
     solve_steady,
 )
+from .dem import Polygon
 from .fluid.unsteady import BDF2Integrator, evolve
+from .scene import Effects, MeshSpec, ParticleSpec, Scene, TimeSpec
+from .simulation import Simulation, SimulationResult
 
 __version__ = "0.1.0"
 
-__all__ = ["BDF2Integrator", "ConvergenceError", "Flow", "Fluid", "RigidMotion", "SolveReport",
-           "TaylorHood", "evolve", "solve_steady"]
+__all__ = ["BDF2Integrator", "ConvergenceError", "Effects", "Flow", "Fluid", "MeshSpec",
+           "ParticleSpec", "Polygon", "RigidMotion", "Scene", "Simulation", "SimulationResult",
+           "SolveReport", "TaylorHood", "TimeSpec", "evolve", "solve_steady"]
