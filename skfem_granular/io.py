@@ -9,6 +9,7 @@ every frame.
 
 from __future__ import annotations
 
+import functools
 import os
 import tempfile
 from pathlib import Path
@@ -34,7 +35,9 @@ def _check_writable(path: Path) -> None:
         raise ValueError(f"output path {str(path)!r}: directory {str(parent)!r} is not writable")
 
 
+@functools.cache
 def _umask() -> int:
+    """The process umask (read once: setting it to read it is not thread-safe)."""
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
