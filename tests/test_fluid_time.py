@@ -158,3 +158,12 @@ def test_bad_time_arguments():
         next(sg.evolve(space, sg.Fluid(), {"left": (0, 0)}, dt=-1.0, t_end=1.0))
     with pytest.raises(ValueError, match="t_end"):
         next(sg.evolve(space, sg.Fluid(), {"left": (0, 0)}, dt=0.1, t_end=-1.0))
+
+
+def test_flow_starting_from_rest_with_growing_boundary_data():
+    """Zero boundary data at t0 (a lid that starts moving) must not break the Newton test."""
+    space = sg.TaylorHood(box(0.0, 0.0, 1.0, 1.0, 0.02))
+    bc = {"top": lambda x, y, t: (t + 0 * x, 0 * x), "left": (0, 0), "right": (0, 0),
+          "bottom": (0, 0)}
+    steps = [f.step for _, f in sg.evolve(space, sg.Fluid(1.0, 0.01), bc, dt=0.1, t_end=0.5)]
+    assert len(steps) == 5 and all(s.iterations < 10 for s in steps)

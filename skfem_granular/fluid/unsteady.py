@@ -226,6 +226,8 @@ class BDF2Integrator:
             dnorm = float(np.abs(dx[: op.nu_free]).max())
             if not math.isfinite(dnorm):
                 raise ConvergenceError(f"BDF2 step dt={dt:.3e}: corrector produced NaN")
+            # a flow starting from rest has no velocity scale yet: use the iterate's
+            scale = max(scale, float(np.abs(x[:nu]).max()))
             if dnorm <= self.newton_tol * scale:
                 break
             if prev_norm is not None and not used_gmres:
