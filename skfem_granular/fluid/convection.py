@@ -55,6 +55,26 @@ class ConvectionKernel:
              self.dphi[:, 1].transpose(1, 2, 0)], axis=1))  # (nel, 3 nq, 6)
         self._wphi = np.ascontiguousarray((self.phi * self.dx).transpose(1, 0, 2))  # (nel, 6, nq)
         self._scatter_idx = (2 * self.edofs.T[:, :, None] + np.arange(2)).ravel()  # (nel, 6, 2)
+        self._jac_tables = None  # built on the first jacobian() call
+
+    def _jacobian_tables(self):
+        """Tables for :meth:`jacobian`, built once (the unsteady chord iteration never needs them).
+
+        ``W[e, (i, j), q] = phi_i phi_j dx`` (nel, 36, nq); the x- and y-derivatives of the
+        basis as contiguous (nel, nq, 6) arrays; the matrix slots of the local entries in
+        (e, i, j, c, d) order. Per slot the contributions still add up in element order, so
+        the sums are the same as in (e, i, c, j, d) order.
+        """
+        if self._jac_tables is None:
+            nel, nloc, nq = self._wphi.shape[0], self._wphi.shape[1], self._nq
+            W = np.ascontiguousarray(
+                (self._wphi[:, :, None, :] * self._tab[:, :nq, :].transpose(0, 2, 1)[:, None, :, :])
+                .reshape(nel, nloc * nloc, nq))
+            dphix = np.ascontiguousarray(self._tab[:, nq:2 * nq])
+            dphiy = np.ascontiguousarray(self._tab[:, 2 * nq:])
+            slot = self._slot.reshape(nel, nloc, 2, nloc, 2).transpose(0, 1, 3, 2, 4).ravel()
+            self._jac_tables = (W, dphix, dphiy, slot)
+        return self._jac_tables
 
     def _fields(self, a: np.ndarray):
         """Values ``(2, nel, nq)`` and gradients ``(2, 2, nel, nq)`` of P2 field ``a``."""
@@ -110,23 +130,23 @@ class ConvectionKernel:
             ``True``: full Newton Jacobian ``N(u) . + N(.) u``; ``False``:
             Picard (Oseen) matrix ``N(u)``.
         """
+        W, dphix, dphiy, slot = self._jacobian_tables()
         F = self._element_fields(u)  # (nel, 3 nq, 2)
-        nq, tab, wphi = self._nq, self._tab, self._wphi
+        nq, wphi = self._nq, self._wphi
         nel, nloc = wphi.shape[0], wphi.shape[1]
         # term 1: delta_cd phi_i (u . grad phi_j)
-        ugphi = tab[:, nq:2 * nq] * F[:, :nq, 0:1] + tab[:, 2 * nq:] * F[:, :nq, 1:2]
-        T1 = np.matmul(wphi, ugphi)  # (nel, i, j)
+        ux = np.ascontiguousarray(F[:, :nq, 0])[:, :, None]
+        uy = np.ascontiguousarray(F[:, :nq, 1])[:, :, None]
+        T1 = np.matmul(wphi, dphix * ux + dphiy * uy)  # (nel, i, j)
         if newton:
             # term 2: phi_i phi_j d_d u_c, as (nel, i, j, c, d)
-            G = np.stack([F[:, nq:2 * nq], F[:, 2 * nq:]], axis=-1)  # (nel, q, c, d)
-            X = tab[:, :nq, :, None, None] * G[:, :, None, :, :]  # (nel, q, j, c, d)
-            T2 = np.matmul(wphi, X.reshape(nel, nq, 4 * nloc)).reshape(nel, nloc, nloc, 2, 2)
-            T2[..., 0, 0] += T1
-            T2[..., 1, 1] += T1
-            local = T2.transpose(0, 1, 3, 2, 4)  # (nel, i, c, j, d)
+            G = np.stack([F[:, nq:2 * nq], F[:, 2 * nq:]], axis=-1).reshape(nel, nq, 4)
+            local = np.matmul(W, G).reshape(nel, nloc, nloc, 2, 2)
+            local[..., 0, 0] += T1
+            local[..., 1, 1] += T1
         else:
-            local = np.zeros((nel, nloc, 2, nloc, 2))
-            local[:, :, 0, :, 0] = T1
-            local[:, :, 1, :, 1] = T1
-        data = np.bincount(self._slot, weights=local.ravel(), minlength=self._indices.size)
+            local = np.zeros((nel, nloc, nloc, 2, 2))
+            local[..., 0, 0] = T1
+            local[..., 1, 1] = T1
+        data = np.bincount(slot, weights=local.ravel(), minlength=self._indices.size)
         return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.nu, self.nu))
