@@ -188,15 +188,25 @@ def polygons_overlap(P: NDArray[np.float64], Q: NDArray[np.float64]) -> bool:
     return True
 
 
+#: Smallest particle extent relative to the domain that meshing accepts.
+MIN_RELATIVE_SIZE = 1e-5
+
+
 def check_layout(D: NDArray[np.float64], particles: Sequence[NDArray[np.float64]]) -> None:
     """Raise ValueError if a particle leaves the domain or two particles overlap."""
     from scipy.spatial import cKDTree
 
+    size = float(np.max(np.ptp(D, axis=1)))
     for i, P in enumerate(particles):
         out = np.flatnonzero(~inside(D, P))
         if out.size:
             raise ValueError(f"particles[{i}]: vertex {out[0]} at ({P[0, out[0]]:g}, "
                              f"{P[1, out[0]]:g}) is not strictly inside the domain")
+        extent = float(np.max(np.ptp(P, axis=1)))
+        if extent < MIN_RELATIVE_SIZE * size:
+            raise ValueError(f"particles[{i}]: extent {extent:.3g} is below "
+                             f"{MIN_RELATIVE_SIZE:g} x the domain size {size:.3g}; such a "
+                             "particle cannot be meshed (round-off); must be larger")
     if len(particles) < 2:
         return
     C = np.array([centroid(P) for P in particles])

@@ -51,10 +51,14 @@ class ContactLaw:
         if self.gamma_t is not None:
             checks.append(("gamma_t", self.gamma_t, 0.0, True))
         for name, v, lo, closed in checks:
+            rng = f">= {lo}" if closed else f"> {lo}"
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.number)):
+                raise ValueError(f"ContactLaw.{name} = {v!r}: must be a number {rng}")
+            v = float(v)
             ok = np.isfinite(v) and (v >= lo if closed else v > lo)
             if not ok:
-                rng = f">= {lo}" if closed else f"> {lo}"
                 raise ValueError(f"ContactLaw.{name} = {v!r}: must be finite and {rng}")
+            object.__setattr__(self, name, v)
 
     @property
     def gt(self) -> float:
