@@ -14,11 +14,13 @@ import numpy as np
 
 def positive(name: str, value, *, allow_zero: bool = False) -> float:
     """Return ``value`` as a float, or raise if it is not finite and positive."""
+    bound = ">= 0" if allow_zero else "> 0"
+    if isinstance(value, bool):  # float(True) == 1.0: a boolean is a mistake, not a number
+        raise ValueError(f"{name} = {value!r}: must be a finite number {bound}")
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} = {value!r}: must be a number > 0") from None
-    bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} = {value!r}: must be a finite number {bound}") from None
     if not math.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
         raise ValueError(f"{name} = {value!r}: must be a finite number {bound}")
     return x

@@ -13,8 +13,17 @@ import sys
 from dataclasses import replace
 
 
+class _UsageError(Exception):
+    """A bad command line (reported in one line, like bad scene values)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise _UsageError(message)
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="skfem-granular", description="Polygonal particles in fluid on graded FEM meshes."
     )
     sub = p.add_subparsers(dest="command", required=True)
@@ -62,9 +71,25 @@ def format_summary(s: dict) -> str:
     return "\n".join(lines)
 
 
+def _check_out(field: str, out) -> None:
+    """Fail early, naming ``field``, when the output directory cannot be created or written."""
+    from pathlib import Path
+
+    from .io import _check_writable
+
+    try:
+        _check_writable(Path(out) / "summary.json")
+    except ValueError as exc:
+        raise ValueError(f"{field} = {str(out)!r}: must be a writable directory; {exc}") from None
+
+
 def main(argv=None) -> int:
     """Entry point; returns the exit code."""
-    args = _parser().parse_args(argv)
+    try:
+        args = _parser().parse_args(argv)
+    except _UsageError as exc:
+        print(f"skfem-granular: error: {exc} (see skfem-granular --help)", file=sys.stderr)
+        return 2
     from .scene import Scene
     from .simulation import Simulation
 
@@ -84,9 +109,11 @@ def main(argv=None) -> int:
                 ),
             )
         out = args.out or scene.output_dir or f"out/{scene.name}"
+        _check_out("--out" if args.out else "output.directory", out)
         sim = Simulation(scene, output_dir=out)
-    except ValueError as exc:
-        print(f"skfem-granular: error: {exc}", file=sys.stderr)
+    except (ValueError, OSError) as exc:  # OSError: files the scene names (read, output)
+        msg = " ".join(str(exc).split())  # always one line
+        print(f"skfem-granular: error: {msg}", file=sys.stderr)
         return 2
     result = sim.run(progress=not args.no_progress)
     print(format_summary(result.summary))

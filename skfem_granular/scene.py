@@ -24,13 +24,14 @@ TOML layout (see ``scenes/single_particle.toml``)::
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
 
-from .dem import ContactLaw, Particle, Polygon
+from .dem import ContactLaw, Particle, Polygon, stable_time_step
 from .fluid.properties import Fluid
 
 
@@ -38,24 +39,25 @@ def _num(section, name, value, *, lo=None, hi=None, lo_open=True, allow_none=Fal
     full = f"{section}.{name}"
     if value is None and allow_none:
         return None
+    rng = []
+    if lo is not None:
+        rng.append(f"{'>' if lo_open else '>='} {lo:g}")
+    if hi is not None:
+        rng.append(f"<= {hi:g}")
+    msg = f"{full} = {value!r}: must be a finite number {' and '.join(rng)}".rstrip()
+    if isinstance(value, bool):  # float(True) == 1.0: a boolean is a typo, not a number
+        raise ValueError(msg)
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{full} = {value!r}: must be a number") from None
+        raise ValueError(msg) from None
     ok = math.isfinite(x)
     if ok and lo is not None:
         ok = x > lo if lo_open else x >= lo
     if ok and hi is not None:
         ok = x <= hi
     if not ok:
-        rng = []
-        if lo is not None:
-            rng.append(f"{'>' if lo_open else '>='} {lo:g}")
-        if hi is not None:
-            rng.append(f"<= {hi:g}")
-        raise ValueError(
-            f"{full} = {value!r}: must be a finite number {' and '.join(rng)}".rstrip()
-        )
+        raise ValueError(msg)
     return x
 
 
@@ -217,6 +219,15 @@ class Scene:
     name: str = "scene"
 
     def __post_init__(self):
+        for name, value, cls, what in (
+            ("fluid", self.fluid, (Fluid, type(None)), "a Fluid or None (dry scene)"),
+            ("contact_law", self.contact_law, ContactLaw, "a ContactLaw"),
+            ("mesh", self.mesh, MeshSpec, "a MeshSpec"),
+            ("time", self.time, TimeSpec, "a TimeSpec"),
+            ("effects", self.effects, Effects, "an Effects"),
+        ):
+            if not isinstance(value, cls):
+                raise ValueError(f"scene.{name} = {value!r}: must be {what}")
         d = _vec("domain", "box", self.domain, 4)
         if not (d[2] > d[0] and d[3] > d[1]):
             raise ValueError(
@@ -231,6 +242,10 @@ class Scene:
         for i, p in enumerate(self.particles):
             if not isinstance(p, ParticleSpec):
                 raise ValueError(f"particles[{i}]: must be a ParticleSpec")
+            if not isinstance(p.polygon, Polygon):
+                raise ValueError(
+                    f"particles[{i}].polygon: must be a Polygon, got {type(p.polygon).__name__}"
+                )
             _num(f"particles[{i}]", "density", p.density, lo=0)
             _num(f"particles[{i}]", "core_ratio", p.core_ratio, lo=0, hi=1.0)
             _vec(f"particles[{i}]", "velocity", p.velocity)
@@ -243,10 +258,29 @@ class Scene:
                 f"coupling.scheme = {self.coupling!r}: must be 'monolithic' or 'partitioned'"
             )
         _num("coupling", "remesh_fraction", self.remesh_fraction, lo=0, hi=1.0)
-        if not (isinstance(self.vtu_every, int) and self.vtu_every >= 0):
-            raise ValueError(f"output.vtu_every = {self.vtu_every!r}: must be an integer >= 0")
+        v = self.vtu_every
+        if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+            raise ValueError(f"output.vtu_every = {v!r}: must be an integer >= 0")
+        if self.output_dir is not None and not isinstance(self.output_dir, (str, os.PathLike)):
+            raise ValueError(
+                f"output.directory = {self.output_dir!r}: must be a directory path (string)"
+            )
+        self._check_dem_dt()
         if self.fluid is None and self.effects.fluid:
             object.__setattr__(self, "effects", replace(self.effects, fluid=False))
+
+    def _check_dem_dt(self) -> None:
+        """``time.dem_dt`` must not exceed the DEM's stable step (named here, not as 'dt')."""
+        if self.time.dem_dt is None:
+            return
+        mass = np.array([p.density * p.polygon.area for p in self.particles])
+        law = self.contact_law
+        bound = stable_time_step(mass, law.E, law.gamma)
+        if self.time.dem_dt > bound * (1.0 + 1e-9):
+            raise ValueError(
+                f"time.dem_dt = {self.time.dem_dt:g}: must be <= {bound:.6g} s, the stable DEM "
+                f"step 0.1*pi*sqrt(min m / contacts.E) / max(1, 2 contacts.gamma)"
+            )
 
     @property
     def dry(self) -> bool:
@@ -265,6 +299,12 @@ class Scene:
             data = tomllib.loads(path.read_text())
         except FileNotFoundError:
             raise ValueError(f"scene file {str(path)!r}: not found") from None
+        except IsADirectoryError:
+            raise ValueError(f"scene file {str(path)!r}: is a directory, not a TOML file") from None
+        except OSError as exc:
+            raise ValueError(f"scene file {str(path)!r}: cannot read ({exc.strerror})") from None
+        except UnicodeDecodeError:
+            raise ValueError(f"scene file {str(path)!r}: not UTF-8 text (TOML required)") from None
         except tomllib.TOMLDecodeError as exc:
             raise ValueError(f"scene file {str(path)!r}: not valid TOML ({exc})") from None
         scene = cls.from_dict(data, name=path.stem)

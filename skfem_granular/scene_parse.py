@@ -14,30 +14,68 @@ PARTICLE_KEYS = {"sides", "radius", "center", "angle", "vertices", "density", "v
                  "angular_velocity", "core_ratio"}
 GRID_KEYS = {"nx", "ny", "sides", "radius", "spacing", "origin", "density", "core_ratio",
              "jitter", "seed"}
+#: largest ``sides`` of a regular polygon (the paper's outlines have 24)
+MAX_SIDES = 1000
+
+
+def _table(name: str, value) -> dict:
+    """``value`` if it is a TOML table, else a one-line error naming the section."""
+    if not isinstance(value, dict):
+        raise ValueError(f"{name} = {value!r}: must be a table ([{name}] section)")
+    return value
+
+
+def _int(where: str, name: str, value, lo: int, hi: int | None = None) -> int:
+    """An integer (not a bool) in ``[lo, hi]``."""
+    ok = isinstance(value, int) and not isinstance(value, bool) and value >= lo
+    if ok and hi is not None:
+        ok = value <= hi
+    if not ok:
+        rng = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
+        raise ValueError(f"{where}.{name} = {value!r}: must be an integer {rng}")
+    return value
 
 
 def _polygon(where: str, d: dict) -> Polygon:
     if "vertices" in d:
         try:
-            return Polygon(np.asarray(d["vertices"], dtype=float), name=where)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{where}.vertices: {exc}") from None
+            V = np.asarray(d["vertices"], dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{where}.vertices = {d['vertices']!r}: must be a (2, N) array of "
+                             "numbers, [[x0, x1, ...], [y0, y1, ...]]") from None
+        try:
+            return Polygon(V, name=where)
+        except ValueError as exc:  # Polygon names the particle already
+            msg = str(exc)
+            raise ValueError(msg if msg.startswith(where) else f"{where}.vertices: {msg}") from None
+        except OverflowError:
+            raise ValueError(f"{where}.vertices: coordinates too large for floating point "
+                             "(give lengths in metres)") from None
     if "sides" not in d or "radius" not in d or "center" not in d:
         raise ValueError(f"{where}: give 'vertices', or 'sides', 'radius' and 'center'")
-    sides = d["sides"]
-    if not isinstance(sides, int) or sides < 3:
-        raise ValueError(f"{where}.sides = {sides!r}: must be an integer >= 3")
+    sides = _int(where, "sides", d["sides"], 3, MAX_SIDES)
     r = _num(where, "radius", d["radius"], lo=0)
     c = _vec(where, "center", d["center"])
     ang = _num(where, "angle", d.get("angle", 0.0))
-    return Polygon.regular(sides, r, center=c, angle=ang)
+    try:
+        return Polygon.regular(sides, r, center=c, angle=ang)
+    except ValueError as exc:  # e.g. a radius below the round-off of the centre coordinates
+        raise ValueError(f"{where}.radius = {r!r}: {exc}") from None
+    except OverflowError:
+        raise ValueError(f"{where}.radius = {r!r}: polygon too large for floating point "
+                         "(give lengths in metres)") from None
 
 
 def _particle(where: str, d: dict) -> ParticleSpec:
+    if not isinstance(d, dict):
+        raise ValueError(f"{where} = {d!r}: must be a table ([[particles]] entry)")
     _check_keys(where, d, PARTICLE_KEYS)
     if "density" not in d:
         raise ValueError(f"{where}.density: missing (kg/m^3, > 0)")
-    return ParticleSpec(_polygon(where, d), _num(where, "density", d["density"], lo=0),
+    # absurd sizes (1e200 m) overflow inside the polygon checks: one error line, no warnings
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        polygon = _polygon(where, d)
+    return ParticleSpec(polygon, _num(where, "density", d["density"], lo=0),
                         velocity=_vec(where, "velocity", d.get("velocity", (0.0, 0.0))),
                         angular_velocity=_num(where, "angular_velocity",
                                               d.get("angular_velocity", 0.0)),
@@ -46,21 +84,18 @@ def _particle(where: str, d: dict) -> ParticleSpec:
 
 def grid_particles(d: dict) -> list[ParticleSpec]:
     """An ``nx`` x ``ny`` block of regular polygons (the paper's Section 7 start)."""
-    _check_keys("grid", d, GRID_KEYS)
+    _check_keys("grid", _table("grid", d), GRID_KEYS)
     for key in ("nx", "ny"):
-        v = d.get(key)
-        if not isinstance(v, int) or not 1 <= v <= 100:
-            raise ValueError(f"grid.{key} = {v!r}: must be an integer in [1, 100]")
-    sides = d.get("sides", 6)
-    if not isinstance(sides, int) or sides < 3:
-        raise ValueError(f"grid.sides = {sides!r}: must be an integer >= 3")
+        _int("grid", key, d.get(key), 1, 100)
+    sides = _int("grid", "sides", d.get("sides", 6), 3, MAX_SIDES)
+    seed = _int("grid", "seed", d.get("seed", 0), 0)
     r = _num("grid", "radius", d.get("radius"), lo=0)
     s = _num("grid", "spacing", d.get("spacing", 2.2 * r), lo=2 * r)
     ox, oy = _vec("grid", "origin", d.get("origin"))
     rho = _num("grid", "density", d.get("density", 2650.0), lo=0)
     core = _num("grid", "core_ratio", d.get("core_ratio", 0.8), lo=0, hi=1)
     jitter = _num("grid", "jitter", d.get("jitter", 0.0), lo=0, lo_open=False, hi=np.pi)
-    rng = np.random.default_rng(int(d.get("seed", 0)))
+    rng = np.random.default_rng(seed)
     out = []
     for j in range(d["ny"]):
         for i in range(d["nx"]):
@@ -73,7 +108,20 @@ def grid_particles(d: dict) -> list[ParticleSpec]:
 
 def scene_kwargs(data: dict) -> dict:
     """Keyword arguments of :class:`Scene` from the TOML dictionary."""
+    if not isinstance(data, dict):
+        raise ValueError(
+            f"scene = {data!r}: must be a table of sections ({', '.join(sorted(SECTIONS))})"
+        )
     _check_keys("scene", data, SECTIONS)
+    for name in sorted(SECTIONS - {"particles", "gravity"}):
+        if name in data:
+            _table(name, data[name])
+    parts = data.get("particles", [])
+    if isinstance(parts, dict):
+        raise ValueError("particles: must be an array of tables ([[particles]], double brackets), "
+                         "got a single table ([particles])")
+    if not isinstance(parts, list):
+        raise ValueError(f"particles = {parts!r}: must be an array of tables ([[particles]])")
     kw = {}
     dom = data.get("domain")
     if not isinstance(dom, dict) or "box" not in dom:
@@ -91,7 +139,7 @@ def scene_kwargs(data: dict) -> dict:
             kw["fluid"] = Fluid(**fl)
         except ValueError as exc:
             raise ValueError(str(exc).replace("Fluid.", "fluid.")) from None
-    parts = [_particle(f"particles[{i}]", p) for i, p in enumerate(data.get("particles", []))]
+    parts = [_particle(f"particles[{i}]", p) for i, p in enumerate(parts)]
     if "grid" in data:
         parts += grid_particles(data["grid"])
     kw["particles"] = parts
@@ -100,6 +148,8 @@ def scene_kwargs(data: dict) -> dict:
     if "contacts" in data:
         c = data["contacts"]
         _check_keys("contacts", c, {"E", "mu", "gamma"})
+        # checked here with the TOML field names (and booleans refused as numbers)
+        c = {k: _num("contacts", k, v, lo=0, lo_open=(k == "E")) for k, v in c.items()}
         try:
             kw["contact_law"] = ContactLaw(**c)
         except ValueError as exc:
@@ -124,5 +174,7 @@ def scene_kwargs(data: dict) -> dict:
         o = data["output"]
         _check_keys("output", o, {"directory", "vtu_every"})
         kw["output_dir"] = o.get("directory")
+        if kw["output_dir"] is not None and not isinstance(kw["output_dir"], str):
+            raise ValueError(f"output.directory = {kw['output_dir']!r}: must be a string (a path)")
         kw["vtu_every"] = o.get("vtu_every", 10)
     return kw
