@@ -34,6 +34,13 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--t-end", type=float, help="override time.t_end (s)")
     run.add_argument("--dt", type=float, help="override time.dt (s)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ren = sub.add_parser("render", help="picture (PNG) or animation (GIF/MP4) of a run's output")
+    ren.add_argument("out", help="output directory of a run (with flow.pvd, particles.pvd)")
+    ren.add_argument("--field", default="speed", choices=["speed", "pressure", "vorticity", "mesh"])
+    ren.add_argument("--vectors", choices=["glyphs", "streamlines"], help="overlay")
+    ren.add_argument("--frame", type=int, default=-1, help="frame index for --png (default last)")
+    ren.add_argument("--png", help="write one frame to this PNG")
+    ren.add_argument("--animation", help="write all frames to this .gif (or .mp4)")
     return p
 
 
@@ -90,6 +97,8 @@ def main(argv=None) -> int:
     except _UsageError as exc:
         print(f"skfem-granular: error: {exc} (see skfem-granular --help)", file=sys.stderr)
         return 2
+    if args.command == "render":
+        return _render(args)
     from .scene import Scene
     from .simulation import Simulation
 
@@ -118,6 +127,36 @@ def main(argv=None) -> int:
     result = sim.run(progress=not args.no_progress)
     print(format_summary(result.summary))
     print(f"output: {result.output_dir}/ (flow.pvd, particles.pvd, history.csv, summary.json)")
+    return 0
+
+
+def _render(args) -> int:
+    from pathlib import Path
+
+    from . import render
+
+    out = Path(args.out)
+    try:
+        if not (out / "flow.pvd").exists():
+            raise ValueError(f"out = {str(out)!r}: no flow.pvd there (run a fluid scene first)")
+        if not args.png and not args.animation:
+            raise ValueError("render: give --png PATH and/or --animation PATH")
+        frames = render.read_pvd(out / "flow.pvd")
+        parts = render.read_pvd(out / "particles.pvd") if (out / "particles.pvd").exists() else []
+        if args.png:
+            if not -len(frames) <= args.frame < len(frames):
+                raise ValueError(f"--frame = {args.frame}: must be in [{-len(frames)}, "
+                                 f"{len(frames) - 1}]")
+            t, f = frames[args.frame]
+            p = parts[args.frame][1] if len(parts) == len(frames) else None
+            render.render_frame(f, p, args.png, field=args.field, vectors=args.vectors, time=t)
+            print(f"wrote {args.png}")
+        if args.animation:
+            render.render_series(out, args.animation, field=args.field, vectors=args.vectors)
+            print(f"wrote {args.animation}")
+    except (ValueError, ImportError) as exc:
+        print(f"skfem-granular: error: {exc}", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -51,14 +51,14 @@ class ContactLaw:
         if self.gamma_t is not None:
             checks.append(("gamma_t", self.gamma_t, 0.0, True))
         for name, v, lo, closed in checks:
-            rng = f">= {lo}" if closed else f"> {lo}"
+            rng = f">= {lo:g}" if closed else f"> {lo:g}"
             if isinstance(v, bool) or not isinstance(v, (int, float, np.number)):
                 raise ValueError(f"ContactLaw.{name} = {v!r}: must be a number {rng}")
-            v = float(v)
-            ok = np.isfinite(v) and (v >= lo if closed else v > lo)
+            x = float(v)
+            ok = np.isfinite(x) and (x >= lo if closed else x > lo)
             if not ok:
                 raise ValueError(f"ContactLaw.{name} = {v!r}: must be finite and {rng}")
-            object.__setattr__(self, name, v)
+            object.__setattr__(self, name, x)
 
     @property
     def gt(self) -> float:

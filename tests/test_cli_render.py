@@ -1,0 +1,29 @@
+"""`skfem-granular render`: a PNG of a run's last frame from the command line."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from skfem_granular.cli import main
+
+SCENE = Path(__file__).resolve().parents[1] / "scenes" / "single_particle.toml"
+
+
+def test_render_png_of_last_frame(tmp_path, capsys):
+    pytest.importorskip("pyvista", reason="pyvista is the 'plot' extra")
+    out = tmp_path / "run"
+    assert main(["run", str(SCENE), "--out", str(out), "--t-end", "3e-5", "--no-progress"]) == 0
+    png = tmp_path / "last.png"
+    assert main(["render", str(out), "--png", str(png), "--field", "pressure"]) == 0
+    from PIL import Image
+
+    img = np.asarray(Image.open(png).convert("RGB"), dtype=float)
+    assert img.shape[0] > 100 and img.shape[1] > 50
+    assert img.std() > 20  # not blank: a colour field, a colour bar and the particle
+
+
+def test_render_bad_directory_exit_code(tmp_path, capsys):
+    assert main(["render", str(tmp_path / "nothing"), "--png", "x.png"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no flow.pvd" in err[0]
