@@ -97,7 +97,8 @@ def _commit_particles(sim, s: CoupledState):
         dem.reset_history()  # velocities were set by the coupled solve
 
 
-def run_coupled(sim, hist, series, bar) -> CoupledState:
+def run_coupled(sim, hist, series, bar, start: CoupledState | None = None,
+                k0: int = 0) -> CoupledState:
     """Advance to ``t_end`` with retries; returns the last good state.
 
     Raises
@@ -106,14 +107,20 @@ def run_coupled(sim, hist, series, bar) -> CoupledState:
         When a step does not converge after :data:`MAX_RETRIES` halvings;
         the caller writes the history and the last good state.
     """
+    from . import checkpoint
+
     sc = sim.scene
     t_end, dt = sc.time.t_end, sc.time.dt
-    s = initial_state(sim)
+    if start is None:
+        s = initial_state(sim)
+        sim._write_frame(series, 0.0, x=s.x)
+    else:
+        s = start
     sim.last_good = s
-    sim._write_frame(series, 0.0, x=s.x)
     eps = 1e-9 * dt
-    k = 0
-    step_target = dt
+    k = k0
+    every = sc.checkpoint_every
+    step_target = dt if s.dt_prev is None else min(dt, 2.0 * s.dt_prev)
     while s.t < t_end - eps:
         step = min(step_target, dt)
         if s.dt_prev is not None:
@@ -137,9 +144,7 @@ def run_coupled(sim, hist, series, bar) -> CoupledState:
                 sim.retries += 1
                 step *= 0.5
         step_target = min(dt, 2.0 * step)
-        s = new
-        if abs(s.t - t_end) <= eps:
-            s.t = t_end
+        s = new  # t is the sum of the steps, not snapped to t_end (resumed runs stay bitwise)
         _commit_particles(sim, s)
         sim.last_good = s
         k += 1
@@ -148,5 +153,7 @@ def run_coupled(sim, hist, series, bar) -> CoupledState:
             sim._write_frame(series, s.t, x=s.x)
         if s.t < t_end - eps:
             s.u_n, s.u_prev, s.p_n = sim._maybe_remesh(s.u_n, s.u_prev, s.p_n)
+        if every and sim.output_dir is not None and k % every == 0:
+            checkpoint.save(sim, s, k, hist, series)
         bar.update(1)
     return s

@@ -18,7 +18,7 @@ TOML layout (see ``scenes/single_particle.toml``)::
     [time]      t_end, dt, dem_dt
     [effects]   fluid, gravity, convection, contacts, rotation, remeshing
     [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction
-    [output]    directory, vtu_every
+    [output]    directory, vtu_every, checkpoint_every
 """
 
 from __future__ import annotations
@@ -200,6 +200,10 @@ class Scene:
     output_dir : str or None
     vtu_every : int
         Write the flow and outlines every this many steps (0: only the last).
+    checkpoint_every : int
+        Write ``checkpoint.pkl`` (the whole state: both BDF2 histories, DEM
+        contact history, mesh, history rows) every this many steps; 0: never.
+        ``Simulation.resume(directory)`` continues from it.
     name : str
     """
 
@@ -216,6 +220,7 @@ class Scene:
     remesh_fraction: float = 0.25
     output_dir: str | None = None
     vtu_every: int = 10
+    checkpoint_every: int = 0
     name: str = "scene"
 
     def __post_init__(self):
@@ -258,9 +263,10 @@ class Scene:
                 f"coupling.scheme = {self.coupling!r}: must be 'monolithic' or 'partitioned'"
             )
         _num("coupling", "remesh_fraction", self.remesh_fraction, lo=0, hi=1.0)
-        v = self.vtu_every
-        if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
-            raise ValueError(f"output.vtu_every = {v!r}: must be an integer >= 0")
+        for key in ("vtu_every", "checkpoint_every"):
+            v = getattr(self, key)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+                raise ValueError(f"output.{key} = {v!r}: must be an integer >= 0")
         if self.output_dir is not None and not isinstance(self.output_dir, (str, os.PathLike)):
             raise ValueError(
                 f"output.directory = {self.output_dir!r}: must be a directory path (string)"

@@ -172,9 +172,10 @@ def scene_kwargs(data: dict) -> dict:
             kw["remesh_fraction"] = c["remesh_fraction"]
     if "output" in data:
         o = data["output"]
-        _check_keys("output", o, {"directory", "vtu_every"})
+        _check_keys("output", o, {"directory", "vtu_every", "checkpoint_every"})
         kw["output_dir"] = o.get("directory")
         if kw["output_dir"] is not None and not isinstance(kw["output_dir"], str):
             raise ValueError(f"output.directory = {kw['output_dir']!r}: must be a string (a path)")
         kw["vtu_every"] = o.get("vtu_every", 10)
+        kw["checkpoint_every"] = o.get("checkpoint_every", 0)
     return kw

@@ -21,7 +21,7 @@ import json
 import math
 import time
 from collections import defaultdict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -73,7 +73,7 @@ class Simulation:
         Overrides ``scene.output_dir``; ``None`` in both writes nothing.
     """
 
-    def __init__(self, scene: Scene, output_dir=None):
+    def __init__(self, scene: Scene, output_dir=None, *, _mesh=None):
         if not isinstance(scene, Scene):
             scene = Scene.from_toml(scene)
         self.scene = scene
@@ -103,24 +103,63 @@ class Simulation:
         self.retries = 0
         self.failure = None
         self.last_good = None
+        self._resume = None
         if not scene.dry:
             t0 = time.perf_counter()
-            self.mesh = build_mesh(scene, self.dem.core_outlines())
+            self.mesh = build_mesh(scene, self.dem.core_outlines()) if _mesh is None else _mesh
             self.timings["meshing"] += time.perf_counter() - t0
-            self._new_coupling()
+            if _mesh is None:
+                self._new_coupling()
+
+    @classmethod
+    def resume(cls, directory, t_end: float | None = None) -> Simulation:
+        """Continue a run from the ``checkpoint.pkl`` in ``directory``.
+
+        Parameters
+        ----------
+        directory : str or Path
+            Output directory of a run with ``output.checkpoint_every > 0``.
+        t_end : float, optional
+            New end time (default: the scene's).
+
+        Returns
+        -------
+        Simulation
+            Ready to :meth:`run` from the checkpointed step; output continues
+            in ``directory``.
+        """
+        from . import checkpoint
+        from .scene import TimeSpec
+
+        data = checkpoint.load(directory)
+        scene = data["scene"]
+        if t_end is not None:
+            scene = replace(scene, time=TimeSpec(t_end=t_end, dt=scene.time.dt,
+                                                 dem_dt=scene.time.dem_dt))
+        sim = cls(scene, output_dir=directory, _mesh=data["mesh"])
+        sim.dem.restore_state(data["dem"])
+        if not scene.dry:
+            sim._new_coupling(centers=data["mesh_centers"], angles=data["mesh_angles"])
+        sim.remeshes = data["counters"]["remeshes"]
+        sim.retries = data["counters"]["retries"]
+        sim._resume = data
+        return sim
 
     # ------------------------------------------------------------------ setup
-    def _new_coupling(self):
+    def _new_coupling(self, centers=None, angles=None):
         old = getattr(self, "coupling", None)
         if old is not None:  # keep the phase times of the coupling being replaced
             for k, v in old.timings.items():
                 self.timings[k] += v
         t0 = time.perf_counter()
-        self.coupling = build_coupling(self.scene, self.mesh, self.dem)
+        self.coupling = build_coupling(self.scene, self.mesh, self.dem, centers=centers)
         self.space = self.coupling.space
-        self.mesh_centers = self.dem.positions.copy()
-        self.mesh_angles = self.dem.angles.copy()
-        cores = self.dem.core_outlines()
+        self.mesh_centers = self.dem.positions.copy() if centers is None else np.array(centers)
+        self.mesh_angles = self.dem.angles.copy() if angles is None else np.array(angles)
+        # body-frame outlines: the same numbers whatever the particles' current pose
+        # (a resumed run must see bit-identical buoyancy)
+        p = self.dem.particles
+        cores = [p.core_local[k, : p.core_count[k]].T for k in range(self.dem.n)]
         self.core_area = outline_areas(cores)
         self.edge = np.array([outline_edge(c, self.scene.mesh.delta_l) for c in cores])
         self.radius = np.array(
@@ -173,6 +212,14 @@ class Simulation:
         n_steps = max(1, int(math.ceil(sc.time.t_end / dt - 1e-9)))
         hist = History(self.dem.n)
         series = self._open_series()
+        start, k0 = None, 0
+        if self._resume is not None:
+            hist.rows = list(self._resume["history"])
+            for name, frames in self._resume["frames"].items():
+                if series is not None and series.get(name) is not None:
+                    series[name].frames = list(frames)
+            start, k0 = self._resume["state"], self._resume["k"]
+            n_steps = max(0, n_steps - k0)
         bar = tqdm(
             total=n_steps,
             disable=not (n_steps > 50 if progress is None else progress),
@@ -184,9 +231,9 @@ class Simulation:
             # spin against each other on 2 cores (measured: 16 ms instead of 5 us per norm)
             with threadpool_limits(limits=1, user_api="blas"):
                 if sc.dry:
-                    self._run_dry(n_steps, dt, hist, series, bar)
+                    self._run_dry(n_steps, dt, hist, series, bar, k0=k0)
                 else:
-                    run_coupled(self, hist, series, bar)
+                    run_coupled(self, hist, series, bar, start=start, k0=k0)
         except (SimulationError, FloatingPointError) as exc:
             self.failure = str(exc)
             if not sc.dry and self.last_good is not None and series is not None:
@@ -244,20 +291,26 @@ class Simulation:
             contacts=dem.contact_count(),
         )
 
-    def _run_dry(self, n_steps, dt, hist, series, bar):
+    def _run_dry(self, n_steps, dt, hist, series, bar, k0=0):
+        from . import checkpoint
+
         dem = self.dem
-        self._write_frame(series, 0.0)
+        if k0 == 0:
+            self._write_frame(series, 0.0)
         v_old = dem.velocities.copy()
         zeros = np.zeros(dem.n)
-        for k in range(n_steps):
+        every = self.scene.checkpoint_every
+        for k in range(k0, k0 + n_steps):
             t0 = time.perf_counter()
             dem.advance(dt)
             self.timings["dem"] += time.perf_counter() - t0
             acc = (dem.velocities - v_old) / dt
             v_old = dem.velocities.copy()
             self._record(hist, dem.t, dt, 0, acc, np.zeros((2, dem.n)), zeros)
-            if self._frame_due(k, n_steps):
+            if self._frame_due(k - k0, n_steps):
                 self._write_frame(series, dem.t)
+            if every and self.output_dir is not None and (k + 1) % every == 0:
+                checkpoint.save(self, None, k + 1, hist, series)
             bar.update()
 
     def _frame_due(self, k, n_steps):

@@ -31,15 +31,17 @@ def build_mesh(scene, cores):
     return meshing.group_mesh(scene.domain, cores, h=m.h, sigma=m.sigma, delta_l=m.delta_l)
 
 
-def build_coupling(scene, mesh, dem):
-    """The coupling object for the current mesh and particle state."""
+def build_coupling(scene, mesh, dem, centers=None):
+    """The coupling object for ``mesh``; ``centers`` (2, K): the particles' reference
+    positions on it (default: where the DEM holds them now)."""
     from .coupling import MonolithicCoupling
     from .coupling_partitioned import PartitionedCoupling
 
     space = TaylorHood(mesh)
     walls = {"wall": (0.0, 0.0)}
     cls = MonolithicCoupling if scene.coupling == "monolithic" else PartitionedCoupling
-    return cls(space, scene.fluid, walls, dem.positions.copy(), dem.mass.copy(),
+    centers = dem.positions.copy() if centers is None else np.array(centers, dtype=float)
+    return cls(space, scene.fluid, walls, centers, dem.mass.copy(),
                dem.inertia.copy(), convection=scene.effects.convection,
                rotation=scene.effects.rotation)
 
