@@ -44,6 +44,10 @@ def polygon_properties(vertices: np.ndarray) -> tuple[float, np.ndarray, float]:
     return float(area), np.array([cx + x0[0], cy + x0[1]]), float(J)
 
 
+#: Largest coordinate magnitude accepted (second moments scale with its 4th power).
+MAX_COORDINATE = 1e60
+
+
 def validate_outline(vertices, name: str = "polygon") -> np.ndarray:
     """Check that ``vertices`` is a finite, convex, counter-clockwise outline.
 
@@ -68,6 +72,9 @@ def validate_outline(vertices, name: str = "polygon") -> np.ndarray:
         V = np.array(vertices, dtype=float)
     except (TypeError, ValueError) as err:
         raise ValueError(f"{name}.vertices: must be a numeric (2, N) array ({err})") from None
+    if V.ndim == 2 and np.all(np.isfinite(V)) and np.abs(V).max(initial=0.0) >= MAX_COORDINATE:
+        raise ValueError(f"{name}.vertices: coordinates up to {np.abs(V).max():.3g}; must be "
+                         f"< {MAX_COORDINATE:g} in magnitude (areas and inertias overflow beyond)")
     if V.ndim != 2 or V.shape[0] != 2 or V.shape[1] < 3:
         raise ValueError(
             f"{name}.vertices has shape {V.shape}: must be (2, N) with N >= 3 "
@@ -148,8 +155,9 @@ class Polygon:
         """
         if int(n) != n or n < 3:
             raise ValueError(f"Polygon.regular n = {n}: must be an integer >= 3")
-        if not (np.isfinite(radius) and radius > 0):
-            raise ValueError(f"Polygon.regular radius = {radius}: must be finite and > 0")
+        if not (np.isfinite(radius) and 0 < radius < MAX_COORDINATE):
+            raise ValueError(f"Polygon.regular radius = {radius}: must be finite, > 0 and "
+                             f"< {MAX_COORDINATE:g} (areas and inertias overflow beyond)")
         phi = angle + 2.0 * np.pi * np.arange(int(n)) / int(n)
         c = np.asarray(center, dtype=float)
         return cls(np.vstack([c[0] + radius * np.cos(phi), c[1] + radius * np.sin(phi)]))
