@@ -148,7 +148,8 @@ def run_coupled(sim, hist, series, bar, start: CoupledState | None = None,
         _commit_particles(sim, s)
         sim.last_good = s
         k += 1
-        sim._record(hist, s.t, step, res["iterations"], acc, res["force"], res["torque"])
+        sim._record(hist, s.t, step, res["iterations"], acc, res["force"], res["torque"],
+                    u=s.u_n)
         if sim._frame_due_time(k, s.t):
             sim._write_frame(series, s.t, x=s.x)
         if s.t < t_end - eps:

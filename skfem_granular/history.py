@@ -26,7 +26,7 @@ PARTICLE_COLUMNS = (
 class History:
     """Rows appended once per step; columns as arrays.
 
-    Attributes after :meth:`arrays`: ``t``, ``dt``, ``iterations`` (N,) and
+    Attributes: ``t``, ``dt``, ``iterations``, ``fluid_energy`` (N,) and
     for each particle column a ``(N, K)`` array: positions ``x``, ``y``,
     ``angle``, velocities ``vx``, ``vy``, ``omega``, accelerations ``ax``,
     ``ay``, fluid forces ``Fx``, ``Fy``, ``torque`` and contact counts.
@@ -36,9 +36,13 @@ class History:
         self.K = n_particles
         self.rows = []
 
-    def append(self, t: float, dt: float, iterations: int, **particle):
-        """Add one step; ``particle`` holds ``(K,)`` arrays named as :data:`PARTICLE_COLUMNS`."""
-        row = {"t": t, "dt": dt, "iterations": iterations}
+    def append(self, t: float, dt: float, iterations: int, fluid_energy: float = float("nan"),
+               **particle):
+        """Add one step; ``particle`` holds ``(K,)`` arrays named as :data:`PARTICLE_COLUMNS`.
+
+        ``fluid_energy`` is the fluid's kinetic energy ``rho u.M u / 2`` (J per unit depth).
+        """
+        row = {"t": t, "dt": dt, "iterations": iterations, "fluid_energy": float(fluid_energy)}
         for c in PARTICLE_COLUMNS:
             row[c] = np.array(particle.get(c, np.zeros(self.K)), dtype=float).reshape(self.K)
         self.rows.append(row)
@@ -47,7 +51,7 @@ class History:
         return len(self.rows)
 
     def __getattr__(self, name):
-        if name in ("t", "dt", "iterations"):
+        if name in ("t", "dt", "iterations", "fluid_energy"):
             return np.array([r[name] for r in self.rows])
         if name in PARTICLE_COLUMNS:
             return np.array([r[name] for r in self.rows]).reshape(len(self.rows), self.K)
@@ -55,12 +59,12 @@ class History:
 
     def to_csv(self, path) -> None:
         """Write the table (one column per quantity and particle) atomically."""
-        head = ["t", "dt", "iterations"] + [
+        head = ["t", "dt", "iterations", "fluid_energy"] + [
             f"{c}_{k}" for k in range(self.K) for c in PARTICLE_COLUMNS
         ]
         data = (
             np.column_stack(
-                [self.t, self.dt, self.iterations]
+                [self.t, self.dt, self.iterations, self.fluid_energy]
                 + [getattr(self, c)[:, k] for k in range(self.K) for c in PARTICLE_COLUMNS]
             )
             if self.rows

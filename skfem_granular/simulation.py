@@ -100,6 +100,7 @@ class Simulation:
         )
         self.warnings = scene_warnings(scene, self.dem, self.contacts_active)
         self.remeshes = 0
+        self.remesh_energy_ratios = []
         self.retries = 0
         self.failure = None
         self.last_good = None
@@ -271,12 +272,13 @@ class Simulation:
             series["flow"].write(t, flow.save)
         self.timings["output"] += time.perf_counter() - t0
 
-    def _record(self, hist, t, dt, its, acc, F, T):
+    def _record(self, hist, t, dt, its, acc, F, T, u=None):
         dem = self.dem
         hist.append(
             t,
             dt,
             its,
+            fluid_energy=float("nan") if u is None else self.fluid_energy(u),
             x=dem.positions[0],
             y=dem.positions[1],
             angle=dem.angles,
@@ -343,12 +345,20 @@ class Simulation:
         self._new_coupling()
         t0 = time.perf_counter()
         tr = FieldTransfer(old, self.space)
+        e_old = 0.5 * self.scene.fluid.density * float(u_n @ (old.M @ u_n))
         u_n = tr.velocity(u_n)
         u_prev = None if u_prev is None else tr.velocity(u_prev)
         p_n = tr.pressure(p_n)
+        # interpolation must not create kinetic energy out of nothing: record the ratio
+        if e_old > 0:
+            self.remesh_energy_ratios.append(self.fluid_energy(u_n) / e_old)
         self.timings["remeshing"] += time.perf_counter() - t0
         self.remeshes += 1
         return u_n, u_prev, p_n
+
+    def fluid_energy(self, u) -> float:
+        """Kinetic energy ``rho u.M u / 2`` of a velocity on the current mesh (J/m)."""
+        return 0.5 * self.scene.fluid.density * float(u @ (self.space.M @ u))
 
     # ------------------------------------------------------------------ report
     def summary(self, hist: History) -> dict:
@@ -373,6 +383,7 @@ class Simulation:
             "dt": sc.time.dt,
             "remeshes": self.remeshes,
             "retries": self.retries,
+            "remesh_energy_ratio_max": max(self.remesh_energy_ratios, default=None),
             "failed": self.failure,
             "warnings": list(self.warnings),
             "wall_time": {k: round(v, 6) for k, v in self.timings.items()},
