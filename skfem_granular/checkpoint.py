@@ -7,9 +7,9 @@ contact springs), the mesh with its meshing recipe and the reference
 positions of the particles on it, the history rows, the counters and the
 frames written so far. It is written atomically (temporary file + rename),
 so a run killed while writing leaves the previous checkpoint intact.
-Resuming rebuilds the coupling from the stored mesh; the matrices and
-factorisations are then the same, so a resumed run reproduces an
-uninterrupted one bit for bit (tested).
+Resuming rebuilds the coupling from the stored mesh; the running simulation
+refactorises at each checkpoint too, so a run resumed from a checkpoint
+reproduces the run that wrote it bit for bit (tested).
 """
 
 from __future__ import annotations
@@ -39,9 +39,12 @@ def save(sim, state, k: int, hist, series) -> Path:
         "frames": {name: s.frames for name, s in (series or {}).items() if s is not None},
     }
     blob = pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL)
-    # a resumed run rebuilds the DEM's Verlet neighbour list; rebuild it here too, so
-    # that both see the same candidate pairs in the same order (bitwise equal sums)
+    # a resumed run rebuilds the DEM's Verlet neighbour list and refactorises the
+    # coupled operator; do both here too, so that the run that wrote the checkpoint and
+    # any run resumed from it do the same arithmetic from here on (bitwise equal)
     sim.dem.neighbours.invalidate()
+    if getattr(sim, "coupling", None) is not None:
+        sim.coupling._a0 = None
     path = Path(sim.output_dir) / FILENAME
     return atomic_write(path, lambda tmp: Path(tmp).write_bytes(blob))
 

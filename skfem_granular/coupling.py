@@ -246,7 +246,7 @@ class MonolithicCoupling:
         t0 = time.perf_counter()
         prev = 0.0
         # the chord loop corrects each linear solve's error itself (exact residuals), so
-        # it may skip iterative refinement; a linear (Stokes) step needs the refined solve
+        # it skips iterative refinement; a linear (Stokes) step needs the refined solve
         solve = self.solver._solve_inexact if self.op.convection else self.solver.solve
         for it in range(1, self.max_iterations + 1):
             G, Rf, x = self.residual(z, x_D, rhs_u, rigid_rhs)

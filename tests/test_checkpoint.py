@@ -26,7 +26,7 @@ def _assert_same(h1, h2):
 
 def _check_resume(scene, n_total, n_first, tmp_path):
     dt = scene.time.dt
-    full = Simulation(_with(scene, n_total * dt), output_dir=tmp_path / "full")
+    full = Simulation(_with(scene, n_total * dt, every=n_first), output_dir=tmp_path / "full")
     h_full = full.run(progress=False).history
     part = Simulation(_with(scene, n_first * dt, every=n_first), output_dir=tmp_path / "part")
     part.run(progress=False)
