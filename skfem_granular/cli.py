@@ -41,6 +41,11 @@ def _parser() -> argparse.ArgumentParser:
     ren.add_argument("--frame", type=int, default=-1, help="frame index for --png (default last)")
     ren.add_argument("--png", help="write one frame to this PNG")
     ren.add_argument("--animation", help="write all frames to this .gif (or .mp4)")
+    stu = sub.add_parser("study", help="accuracy against cost over a grid of discretisations")
+    stu.add_argument("study", choices=["single-particle", "faxen"])
+    stu.add_argument("--out", help="study directory (default: out/study_<study>[_smoke])")
+    stu.add_argument("--smoke", action="store_true", help="small grid, short runs (minutes)")
+    stu.add_argument("--workers", type=int, default=2, help="local worker processes (default 2)")
     return p
 
 
@@ -99,6 +104,8 @@ def main(argv=None) -> int:
         return 2
     if args.command == "render":
         return _render(args)
+    if args.command == "study":
+        return _study(args)
     from .scene import Scene
     from .simulation import Simulation
 
@@ -158,6 +165,30 @@ def _render(args) -> int:
         print(f"skfem-granular: error: {exc}", file=sys.stderr)
         return 2
     return 0
+
+
+def _study(args) -> int:
+    """``skfem-granular study``: run or resume a study, print the table's path and orders."""
+    from . import studies, study_plots
+
+    out = args.out or f"out/study_{args.study.replace('-', '_')}{'_smoke' if args.smoke else ''}"
+    try:
+        if args.workers < 1:
+            raise ValueError(f"--workers = {args.workers}: must be an integer >= 1")
+        _check_out("--out", out)
+        res = studies.run_study(args.study, out, smoke=args.smoke, workers=args.workers,
+                                log=lambda m: print(m, flush=True))
+    except (ValueError, OSError, ImportError) as exc:  # ImportError: matplotlib (plot extra)
+        print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+    print(f"{len(res.computed)} runs computed, {len(res.rows) - len(res.computed)} reused, "
+          f"{len(res.failed)} failed")
+    for key, msg in res.failed.items():
+        print(f"failed: {key}: {msg}")
+    orders = study_plots.orders(res.rows)
+    print("fitted orders (h-equivalent): " + ", ".join(f"{k} {v:.2f}" for k, v in orders.items()))
+    print("wrote " + ", ".join(str(f) for f in res.files))
+    return 1 if res.failed else 0
 
 
 if __name__ == "__main__":

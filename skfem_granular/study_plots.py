@@ -1,0 +1,247 @@
+"""Tables and plots of a study (matplotlib, Agg): Pareto front, convergence, the paper's Fig. 2."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .studies import COLUMNS
+
+STYLE = {"uniform": ("o", "C0"), "graded": ("s", "C1"), "sigma": ("^", "C2"), "dt": ("D", "C3")}
+
+
+def fit_order(x, err) -> float:
+    """Slope ``p`` of ``err ~ x^-p`` (least squares in log-log; NaN with < 2 points)."""
+    x, err = np.asarray(x, float), np.asarray(err, float)
+    ok = np.isfinite(err) & (err > 0) & np.isfinite(x) & (x > 0)
+    if ok.sum() < 2:
+        return float("nan")
+    return float(-np.polyfit(np.log(x[ok]), np.log(err[ok]), 1)[0])
+
+
+def orders(rows) -> dict:
+    """Per family: order in DOFs, written h-equivalent (``err ~ DOFs^(-p/2)``), unpermuted runs."""
+    out = {}
+    for fam in ("uniform", "graded", "sigma"):
+        for sig in sorted({r["sigma"] or 0 for r in rows if r["family"] == fam}):
+            sel = [r for r in rows if r["family"] == fam and not r["seed"]
+                   and (r["sigma"] or 0) == sig]
+            name = fam if fam != "sigma" else f"graded sigma={sig:g}"
+            if len(sel) > 1:
+                out[name] = 2 * fit_order([r["dofs"] for r in sel], [r["error"] for r in sel])
+    return out
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _label(fam, sigma=None):
+    if fam == "sigma":
+        return f"graded, sigma = {sigma:g}"
+    return {"graded": "graded (Eq. 4 sigma)", "uniform": "uniform", "dt": "graded, time step"}[fam]
+
+
+def _groups(rows):
+    """Unpermuted rows with a finite positive error, grouped by (family, sigma)."""
+    out = {}
+    for r in rows:
+        e = r["error"]
+        if r["seed"] or e is None or not np.isfinite(e) or e <= 0:
+            continue
+        out.setdefault((r["family"], r["sigma"]), []).append(r)
+    return out
+
+
+def pareto_front(points):
+    """Indices of the non-dominated points (cost, error), sorted by cost."""
+    idx = sorted(range(len(points)), key=lambda i: points[i])
+    front, best = [], np.inf
+    for i in idx:
+        if points[i][1] < best:
+            front.append(i)
+            best = points[i][1]
+    return front
+
+
+def plot_pareto(rows, path, title=""):
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    allp = []
+    for (fam, sig), sel in sorted(_groups(rows).items(), key=lambda kv: str(kv[0])):
+        m, c = STYLE[fam]
+        if fam == "sigma":
+            c = "C2" if sig < 1.3 else "C4"
+        x = [r["wall_time"] for r in sel]
+        y = [r["error"] for r in sel]
+        ax.loglog(x, y, m, color=c, label=_label(fam, sig), alpha=0.85)
+        allp += list(zip(x, y, strict=True))
+    if allp:
+        f = [allp[i] for i in pareto_front(allp)]
+        ax.step([p[0] for p in f], [p[1] for p in f], "k--", where="post", lw=1,
+                label="Pareto front")
+    ax.set_xlabel("wall time per run [s]")
+    ax.set_ylabel("relative error")
+    ax.set_title(title or "error against cost")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_convergence(rows, path, title=""):
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    ords = orders(rows)
+    for (fam, sig), sel in sorted(_groups(rows).items(), key=lambda kv: str(kv[0])):
+        if fam == "dt":
+            continue
+        m, c = STYLE[fam]
+        if fam == "sigma":
+            c = "C2" if sig < 1.3 else "C4"
+        sel = sorted(sel, key=lambda r: r["dofs"])
+        x = np.array([r["dofs"] for r in sel], float)
+        y = np.array([r["error"] for r in sel], float)
+        name = fam if fam != "sigma" else f"graded sigma={sig:g}"
+        p = ords.get(name, np.nan)
+        ax.loglog(x, y, m, color=c, label=f"{_label(fam, sig)}: order {p:.2f}")
+        if len(x) > 1:
+            cst = np.exp(np.mean(np.log(y) + p / 2 * np.log(x)))
+            ax.loglog(x, cst * x ** (-p / 2), "-", color=c, lw=1)
+    ax.set_xlabel("DOFs")
+    ax.set_ylabel("relative error")
+    ax.set_title(title or "convergence (orders h-equivalent: err ~ DOFs^(-p/2))")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def sweet_spot(rows, family="graded"):
+    """Fits ``disc = A N^-a`` (``family``) and ``round = B N^b`` (renumbering spreads).
+
+    Returns ``(N*, (A, a), (B, b))``: ``N*`` the DOFs where the fitted lines
+    cross (beyond it refining cannot reduce the error), None without a crossing.
+    """
+    d = [r for r in rows if r["family"] == family and not r["seed"] and r["error"]
+         and np.isfinite(r["error"]) and r["error"] > 0]
+    q = [r for r in rows if r["rounding_renumber"] and np.isfinite(r["rounding_renumber"])
+         and r["rounding_renumber"] > 0]
+    if len(d) < 2 or len(q) < 2:
+        return None, None, None
+    a = fit_order([r["dofs"] for r in d], [r["error"] for r in d])
+    A = np.exp(np.mean([np.log(r["error"]) + a * np.log(r["dofs"]) for r in d]))
+    b = -fit_order([r["dofs"] for r in q], [r["rounding_renumber"] for r in q])
+    B = np.exp(np.mean([np.log(r["rounding_renumber"]) - b * np.log(r["dofs"]) for r in q]))
+    n_star = float((A / B) ** (1 / (a + b))) if a + b > 0 and A > B else None
+    return n_star, (float(A), float(a)), (float(B), float(b))
+
+
+def plot_fig2(rows, path, title=""):
+    """The paper's Fig. 2, measured: discretisation error falls, rounding error grows."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    for fam in ("uniform", "graded"):
+        sel = sorted((r for r in rows if r["family"] == fam and not r["seed"] and r["error"]
+                      and np.isfinite(r["error"]) and r["error"] > 0), key=lambda r: r["dofs"])
+        m, c = STYLE[fam]
+        ax.loglog([r["dofs"] for r in sel], [r["error"] for r in sel], m + "-", color=c,
+                  label=f"discretisation error, {_label(fam)}")
+    for col, m, lab in (("rounding_renumber", "x", "rounding: spread over node renumberings"),
+                        ("rounding_field", "1", "rounding: renumbering spread, pressure field"),
+                        ("rounding_mirror", "+", "rounding: cross-stream/stream, mirror mesh")):
+        sel = [r for r in rows if not r["seed"] and r.get(col) is not None
+               and np.isfinite(r[col])]
+        if not sel:
+            continue
+        pos = [r for r in sel if r[col] > 0]
+        color = {"rounding_renumber": "k", "rounding_field": "C5"}.get(col, "C3")
+        ax.loglog([r["dofs"] for r in pos], [r[col] for r in pos], m, ms=8, color=color,
+                  label=lab)
+        zero = [r for r in sel if r[col] == 0]
+        if zero:
+            ax.loglog([r["dofs"] for r in zero], [1e-17] * len(zero), m, ms=8, color="0.5",
+                      label=f"{lab.split(':')[1].strip()} = 0 exactly (drawn at 1e-17)")
+    n_star, disc, rnd = sweet_spot(rows)
+    dofs = [r["dofs"] for r in rows]
+    if disc and rnd:
+        lo, hi = min(dofs), max(dofs)
+        hi_plot = max(hi, n_star or hi) * 1.5
+        x = np.geomspace(lo, hi_plot, 100)
+        ax.loglog(x, disc[0] * x ** -disc[1], ":", color="C1", lw=1)
+        ax.loglog(x, rnd[0] * x ** rnd[1], ":", color="k", lw=1,
+                  label=f"fits: disc ~ N^-{disc[1]:.2f}, rounding ~ N^{rnd[1]:.2f}")
+        if n_star:
+            extra = " (extrapolated)" if n_star > hi else ""
+            ax.axvline(n_star, color="C2", lw=2, alpha=0.6,
+                       label=f"sweet spot (fits cross) N = {n_star:.2g} DOFs{extra}")
+    ax.set_xlabel("DOFs")
+    ax.set_ylabel("relative error")
+    ax.set_title(title or "discretisation vs rounding error (paper Fig. 2, measured)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def all_plots(rows, out_dir, study):
+    """``pareto.png``, ``convergence.png`` and ``fig2.png`` in ``out_dir``."""
+    out_dir = Path(out_dir)
+    q = "v_y(t_end)" if study == "single-particle" else "Faxen drag"
+    return [plot_pareto(rows, out_dir / "pareto.png", f"{study}: {q} error against wall time"),
+            plot_convergence(rows, out_dir / "convergence.png",
+                             f"{study}: {q} error against DOFs"),
+            plot_fig2(rows, out_dir / "fig2.png",
+                      f"{study}: discretisation vs rounding (paper Fig. 2, measured)")]
+
+
+def _fmt(v, full=False):
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else (repr(v) if full else f"{v:.4g}")
+    return str(v)
+
+
+def write_tables(rows, out_dir, study, smoke) -> list[Path]:
+    """``table.csv`` (all columns) and ``table.md`` (the readable subset) with fitted orders."""
+    import csv
+
+    out_dir = Path(out_dir)
+    with open(out_dir / "table.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=COLUMNS)
+        w.writeheader()
+        w.writerows({c: _fmt(r[c], full=True) for c in COLUMNS} for r in rows)
+    cols = ("family", "n_sides" if study == "faxen" else "h", "delta_l", "sigma", "dt", "seed",
+            "vertices", "p2_nodes", "dofs", "wall_time", "wall_solve", "peak_rss_mb", "value",
+            "error", "error_curve", "rounding_mirror", "rounding_renumber", "rounding_field")
+    drop = ("dt", "error_curve", "h", "delta_l") if study == "faxen" else ("rounding_field",)
+    cols = tuple(c for c in cols if c not in drop)
+    refs = sorted({r["reference"] for r in rows if r["reference"]})
+    lines = [f"# {study} study{' (smoke)' if smoke else ''}", "",
+             f"quantity: {rows[0]['quantity'] if rows else ''}; reference: " + "; ".join(refs),
+             "error: relative to the reference; error_curve: max |v_y(t) - v_y,ref(t)| / "
+             "max |v_y,ref|; rounding_mirror: cross-stream/stream ratio on mirror-symmetric "
+             "meshes (rounding alone); rounding_renumber: relative spread over node "
+             "renumberings (single particle: of the whole v_y curve); rounding_field: "
+             "the same for the pressure at 74 fixed points; wall times in s; "
+             "peak_rss_mb: peak resident memory of the worker process.", "",
+             "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines += ["| " + " | ".join(_fmt(r[c]) for c in cols) + " |" for r in rows]
+    lines += ["", "Fitted orders (h-equivalent, err ~ DOFs^(-p/2)): "
+              + ", ".join(f"{k} {v:.2f}" for k, v in orders(rows).items())]
+    (out_dir / "table.md").write_text("\n".join(lines) + "\n")
+    return [out_dir / "table.csv", out_dir / "table.md"]

@@ -1,0 +1,159 @@
+"""Accuracy-against-cost studies (skfem_granular.studies): table, orders, plots, resume, executors.
+
+Tiny grids (a few seconds of runs); the full grids are `skfem-granular study ... [--smoke]`.
+"""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from skfem_granular import studies, study_plots
+from skfem_granular.cli import main
+from skfem_granular.studies import Run
+
+FAXEN_RUNS = [Run("graded", "graded", n_sides=n) for n in (12, 24, 48)] + [
+    Run("graded", "graded", n_sides=12, seed=1),
+    Run("uniform", "uniform", n_sides=12),
+]
+WALL = ("wall_time", "wall_meshing", "wall_assembly", "wall_solve", "wall_other", "peak_rss_mb")
+
+
+@pytest.fixture(scope="module")
+def faxen(tmp_path_factory):
+    out = tmp_path_factory.mktemp("faxen")
+    return studies.run_study("faxen", out, runs=FAXEN_RUNS, workers=2)
+
+
+def _table(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_table_has_one_row_per_run_and_all_columns(faxen):
+    rows = _table(faxen.out_dir / "table.csv")
+    assert tuple(rows[0].keys()) == studies.COLUMNS
+    assert [r["key"] for r in rows] == [r.key for r in FAXEN_RUNS]
+    for r in rows:
+        assert int(r["dofs"]) > int(r["p2_nodes"]) > int(r["vertices"]) > 0
+        assert float(r["wall_time"]) > 0 and float(r["peak_rss_mb"]) > 0
+        assert r["reference"].startswith("analytic Faxen")
+    md = (faxen.out_dir / "table.md").read_text()
+    assert md.count("\n| graded |") == 4 and "Fitted orders" in md
+    assert sorted(faxen.computed) == sorted(r.key for r in FAXEN_RUNS) and not faxen.failed
+
+
+def test_faxen_error_falls_with_fitted_order_above_one(faxen):
+    # VALIDATION.md case 3: F/(mu U) = 4 pi / (ln(1/k) - 0.9157 + 1.7244 k^2 - ...), k = 0.2
+    assert studies.faxen_drag(0.2) == pytest.approx(16.5328, rel=1e-5)
+    g = [r for r in faxen.rows if r["family"] == "graded" and not r["seed"]]
+    err = [r["error"] for r in g]
+    assert all(a > b for a, b in zip(err, err[1:], strict=False)), err
+    order = study_plots.orders(faxen.rows)["graded"]
+    assert order > 1.0
+    assert study_plots.fit_order([r["n_sides"] for r in g], err) > 1.0  # in the outline edge too
+
+
+def test_rounding_measures_are_named_and_small(faxen):
+    base = next(r for r in faxen.rows if r["key"] == "graded_graded_n_sides12")
+    assert base["mirror_symmetric"] and 0 <= base["rounding_mirror"] < 1e-12
+    assert 0 <= base["rounding_renumber"] < 1e-10  # renumbering changes rounding only
+    uni = next(r for r in faxen.rows if r["key"] == "uniform_uniform_n_sides12")
+    assert not uni["mirror_symmetric"] and np.isnan(uni["rounding_mirror"])
+
+
+def test_pareto_figure_exists_and_is_not_blank(faxen):
+    from PIL import Image
+
+    for name in ("pareto.png", "convergence.png", "fig2.png"):
+        img = np.asarray(Image.open(faxen.out_dir / name).convert("L"), dtype=float)
+        assert img.shape[0] > 300 and img.shape[1] > 400
+        assert img.std() > 10 and (img < 128).mean() > 0.01, name
+
+
+def test_resume_recomputes_only_the_missing_run(faxen):
+    victim = FAXEN_RUNS[1]
+    before = json.loads((faxen.out_dir / "runs" / f"{victim.key}.json").read_text())
+    (faxen.out_dir / "runs" / f"{victim.key}.json").unlink()
+    again = studies.run_study("faxen", faxen.out_dir, runs=FAXEN_RUNS, workers=2, plots=False)
+    assert again.computed == [victim.key]
+    after = json.loads((faxen.out_dir / "runs" / f"{victim.key}.json").read_text())
+    assert after["value"] == pytest.approx(before["value"], rel=1e-12)
+    assert len(again.rows) == len(FAXEN_RUNS)
+
+
+def test_renumbered_mesh_keeps_boundaries_and_drag(faxen):
+    import meshing
+    import skfem_granular as sg
+    from skfem_granular.dem import Polygon
+
+    disk = Polygon.regular(16, 0.2, center=(0.0, 0.0)).vertices
+    mesh = meshing.graded_mesh(studies.FAXEN["box"], [disk])
+    perm = studies.renumbered(mesh, 7)
+    assert not np.array_equal(perm.p, mesh.p)
+    for name, facets in mesh.boundaries.items():
+        a = np.sort(mesh.p[:, mesh.facets[:, facets]].reshape(4, -1).round(12), axis=1)
+        b = np.sort(perm.p[:, perm.facets[:, perm.boundaries[name]]].reshape(4, -1).round(12),
+                    axis=1)
+        assert a.shape == b.shape and np.allclose(np.sort(a.ravel()), np.sort(b.ravel())), name
+    bc = {"wall": (0, 0), "particle0": (1.0, 0.0)}
+    F0 = sg.solve_steady(mesh, sg.Fluid(1, 1), bc).force("particle0")
+    F1 = sg.solve_steady(perm, sg.Fluid(1, 1), bc).force("particle0")
+    assert F1[0] == pytest.approx(F0[0], rel=1e-11)
+
+
+def test_single_particle_errors_against_the_finest_run(tmp_path):
+    t_end = 3e-5
+    runs = [Run("uniform", "uniform", h=0.26e-3, dt=1e-5, t_end=t_end),
+            Run("graded", "graded", dt=1e-5, t_end=t_end),
+            Run("graded", "graded", dt=1e-5, t_end=t_end, seed=1)]
+    res = studies.run_study("single-particle", tmp_path, runs=runs, workers=2, plots=False)
+    ref, g, _ = res.rows
+    assert np.isnan(ref["error"]) and g["reference"] == f"finest run {runs[0].key}"
+    assert 0 < g["error"] < 0.1 and g["error_curve"] >= g["error"] * 0.999
+    assert g["value"] < 0 and g["mirror_symmetric"] and g["rounding_mirror"] < 1e-12
+    assert 0 <= g["rounding_renumber"] < 1e-10
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_dask_executor_gives_the_same_table(faxen, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        res = studies.run_study("faxen", tmp_path, runs=FAXEN_RUNS, plots=False,
+                                executor=client.get_executor())
+    assert sorted(res.computed) == sorted(r.key for r in FAXEN_RUNS)
+    local = {r["key"]: r for r in _table(faxen.out_dir / "table.csv")}
+    table = _table(tmp_path / "table.csv")
+    assert len(table) == len(local)
+    for r in table:  # rounding spreads are compared only where the values are (4 digits)
+        for c in studies.COLUMNS:
+            if c not in WALL and not c.startswith("rounding"):
+                assert r[c] == local[r["key"]][c], (r["key"], c)
+    here = {r["key"]: r["value"] for r in faxen.rows}
+    for r in res.rows:
+        assert r["value"] == pytest.approx(here[r["key"]], rel=1e-12)
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["study", "sedimentation"], "invalid choice"),
+    (["study", "faxen", "--workers", "0"], "--workers"),
+    (["study", "faxen", "--workers", "two"], "invalid int"),
+])
+def test_cli_bad_input_one_line_exit_2(argv, text, capsys, tmp_path):
+    assert main(argv + ["--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and text in err[0]
+
+
+def test_cli_smoke_study_writes_table_and_figures(tmp_path, capsys):
+    out = tmp_path / "fx"
+    assert main(["study", "faxen", "--smoke", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "18 runs computed" in text and "graded" in text
+    for name in ("table.csv", "table.md", "pareto.png", "convergence.png", "fig2.png"):
+        assert (out / name).stat().st_size > 0
+    assert main(["study", "faxen", "--smoke", "--out", str(out)]) == 0  # resumed: nothing to do
+    assert "0 runs computed, 18 reused" in capsys.readouterr().out
