@@ -1,9 +1,13 @@
 """The ``skfem-granular`` command.
 
-``skfem-granular run SCENE.toml [--mesh graded|uniform|group] [--out DIR] [--t-end T] [--dt DT]``
-runs a scene and writes ``flow.pvd`` (VTU frames), ``particles.pvd``,
-``history.csv`` and ``summary.json`` into the output directory. Bad input
-ends with exit code 2 and one line naming the field and the allowed range.
+- ``skfem-granular run SCENE.toml [--mesh graded|uniform|group] [--out DIR] [--t-end T] [--dt DT]``
+  runs a scene and writes ``flow.pvd`` (VTU frames), ``particles.pvd``,
+  ``history.csv`` and ``summary.json`` into the output directory;
+  ``skfem-granular run --resume DIR [--t-end T]`` continues from its checkpoint.
+- ``skfem-granular render DIR --png PATH | --animation PATH`` draws a run's output.
+- ``skfem-granular study single-particle|faxen`` runs an accuracy-vs-cost study.
+
+Bad input ends with exit code 2 and one line naming the field and the allowed range.
 """
 
 from __future__ import annotations
@@ -28,7 +32,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene (TOML)")
-    run.add_argument("scene", help="scene file, e.g. scenes/single_particle.toml")
+    run.add_argument("scene", nargs="?", help="scene file, e.g. scenes/single_particle.toml")
+    run.add_argument("--resume", metavar="DIR",
+                     help="continue the run whose checkpoint.pkl is in DIR (--t-end may extend it)")
     run.add_argument("--mesh", choices=["graded", "uniform", "group"], help="override mesh.kind")
     run.add_argument("--out", help="output directory (default: the scene's output.directory)")
     run.add_argument("--t-end", type=float, help="override time.t_end (s)")
@@ -110,6 +116,14 @@ def main(argv=None) -> int:
     from .simulation import Simulation
 
     try:
+        if args.resume is not None:
+            if args.scene or args.mesh or args.dt is not None or args.out:
+                raise ValueError("--resume DIR takes no scene, --mesh, --dt or --out (the "
+                                 "checkpoint holds them); only --t-end may change")
+            sim = Simulation.resume(args.resume, t_end=args.t_end)
+            return _finish_run(sim, args)
+        if not args.scene:
+            raise ValueError("run: give a scene file (or --resume DIR)")
         scene = Scene.from_toml(args.scene)
         if args.mesh:
             scene = scene.with_mesh(args.mesh)
@@ -131,6 +145,10 @@ def main(argv=None) -> int:
         msg = " ".join(str(exc).split())  # always one line
         print(f"skfem-granular: error: {msg}", file=sys.stderr)
         return 2
+    return _finish_run(sim, args)
+
+
+def _finish_run(sim, args) -> int:
     result = sim.run(progress=not args.no_progress)
     print(format_summary(result.summary))
     print(f"output: {result.output_dir}/ (flow.pvd, particles.pvd, history.csv, summary.json)")

@@ -71,9 +71,13 @@ class Simulation:
         The scene, or a TOML file to read it from.
     output_dir : str or Path, optional
         Overrides ``scene.output_dir``; ``None`` in both writes nothing.
+    mesh : skfem.MeshTri, optional
+        Use this fluid mesh instead of building one from ``scene.mesh``; it
+        must have the boundaries ``"wall"`` and ``"particle0"``, ... around
+        the particle cores (as :mod:`meshing` makes them).
     """
 
-    def __init__(self, scene: Scene, output_dir=None, *, _mesh=None):
+    def __init__(self, scene: Scene, output_dir=None, *, mesh=None):
         if not isinstance(scene, Scene):
             scene = Scene.from_toml(scene)
         self.scene = scene
@@ -107,10 +111,9 @@ class Simulation:
         self._resume = None
         if not scene.dry:
             t0 = time.perf_counter()
-            self.mesh = build_mesh(scene, self.dem.core_outlines()) if _mesh is None else _mesh
+            self.mesh = build_mesh(scene, self.dem.core_outlines()) if mesh is None else mesh
             self.timings["meshing"] += time.perf_counter() - t0
-            if _mesh is None:
-                self._new_coupling()
+            self._new_coupling()
 
     @classmethod
     def resume(cls, directory, t_end: float | None = None) -> Simulation:
@@ -137,7 +140,7 @@ class Simulation:
         if t_end is not None:
             scene = replace(scene, time=TimeSpec(t_end=t_end, dt=scene.time.dt,
                                                  dem_dt=scene.time.dem_dt))
-        sim = cls(scene, output_dir=directory, _mesh=data["mesh"])
+        sim = cls(scene, output_dir=directory, mesh=data["mesh"])
         sim.dem.restore_state(data["dem"])
         if not scene.dry:
             sim._new_coupling(centers=data["mesh_centers"], angles=data["mesh_angles"])

@@ -75,3 +75,21 @@ def test_resume_errors(tmp_path):
     (tmp_path / "checkpoint.pkl").write_bytes(b"not a pickle")
     with pytest.raises(ValueError, match="not a readable checkpoint"):
         Simulation.resume(tmp_path)
+
+
+def test_cli_resume(tmp_path, capsys):
+    from skfem_granular.cli import main
+
+    toml = (SCENES / "single_particle.toml").read_text().replace(
+        "vtu_every = 10", "vtu_every = 5\ncheckpoint_every = 5")
+    scene = tmp_path / "sp.toml"
+    scene.write_text(toml)
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out), "--t-end", "1e-4", "--no-progress"]) == 0
+    assert main(["run", "--resume", str(out), "--t-end", "2e-4", "--no-progress"]) == 0
+    table = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1)
+    assert table.shape[0] == 20 and table[-1, 0] == pytest.approx(2e-4)
+    capsys.readouterr()
+    assert main(["run", "--resume", str(tmp_path / "nothing")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no checkpoint.pkl" in err[0]
