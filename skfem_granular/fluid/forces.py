@@ -51,32 +51,29 @@ def _stress_fields(space, fluid, u, p, name):
     return fb, dict(u=fb.interpolate(u), p=fbp.interpolate(p))
 
 
-@Functional
-def _traction_x(w):
+def _traction(w):
+    """Traction on the boundary body: ``-sigma n`` (``n`` out of the fluid), ``(2, ...)``."""
     n = w.n
     G = grad(w["u"])
     s = w["eta"] * (G + np.transpose(G, (1, 0, 2, 3)))
-    return -(-w["p"] * n[0] + s[0, 0] * n[0] + s[0, 1] * n[1])
+    return -np.array([-w["p"] * n[0] + s[0, 0] * n[0] + s[0, 1] * n[1],
+                      -w["p"] * n[1] + s[1, 0] * n[0] + s[1, 1] * n[1]])
+
+
+@Functional
+def _traction_x(w):
+    return _traction(w)[0]
 
 
 @Functional
 def _traction_y(w):
-    n = w.n
-    G = grad(w["u"])
-    s = w["eta"] * (G + np.transpose(G, (1, 0, 2, 3)))
-    return -(-w["p"] * n[1] + s[1, 0] * n[0] + s[1, 1] * n[1])
+    return _traction(w)[1]
 
 
 @Functional
 def _traction_torque(w):
-    n = w.n
-    G = grad(w["u"])
-    s = w["eta"] * (G + np.transpose(G, (1, 0, 2, 3)))
-    tx = -(-w["p"] * n[0] + s[0, 0] * n[0] + s[0, 1] * n[1])
-    ty = -(-w["p"] * n[1] + s[1, 0] * n[0] + s[1, 1] * n[1])
-    rx = w.x[0] - w["X"]
-    ry = w.x[1] - w["Y"]
-    return rx * ty - ry * tx
+    tx, ty = _traction(w)
+    return (w.x[0] - w["X"]) * ty - (w.x[1] - w["Y"]) * tx
 
 
 def traction_force(space, fluid, u: np.ndarray, p: np.ndarray, name: str) -> np.ndarray:
