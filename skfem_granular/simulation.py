@@ -208,8 +208,6 @@ class Simulation:
         progress : bool, optional
             Show a tqdm progress bar (default: when the run has > 50 steps).
         """
-        from tqdm.auto import tqdm
-
         sc = self.scene
         t_start = time.perf_counter()
         dt = sc.time.dt
@@ -224,9 +222,14 @@ class Simulation:
                     series[name].frames = list(frames)
             start, k0 = self._resume["state"], self._resume["k"]
             n_steps = max(0, n_steps - k0)
+        show = n_steps > 50 if progress is None else progress
+        if show:  # tqdm.auto picks the notebook widget; plain tqdm when it is hidden
+            from tqdm.auto import tqdm
+        else:
+            from tqdm import tqdm
         bar = tqdm(
             total=n_steps,
-            disable=not (n_steps > 50 if progress is None else progress),
+            disable=not show,
             desc=sc.name,
             unit="step",
         )
