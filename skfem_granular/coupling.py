@@ -33,13 +33,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import timestep as ts
-from .fluid.boundary import DirichletData, RigidMotion
+from .coupling_base import RigidParticles
 from .fluid.errors import ConvergenceError
 from .fluid.linsolve import make_solver
-from .fluid.operator import NavierStokesOperator
 
 
-class MonolithicCoupling:
+class MonolithicCoupling(RigidParticles):
     """Fluid + rigid particles in one BDF2/Newton system on a fixed mesh.
 
     Parameters
@@ -69,25 +68,12 @@ class MonolithicCoupling:
     def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
                  convection: bool = True, rotation: bool = True, solver: str = "auto",
                  newton_tol: float = 1e-8, max_iterations: int = 15):
-        self.space = space
-        self.fluid = fluid
-        self.K = int(np.asarray(mass).size)
-        self.centers = np.asarray(centers, dtype=float).reshape(2, self.K)
-        self.mass = np.asarray(mass, dtype=float).reshape(self.K)
-        self.inertia = np.asarray(inertia, dtype=float).reshape(self.K)
-        self.rotation = bool(rotation)
-        names = [f"particle{k}" for k in range(self.K)]
-        specs = dict(walls)
-        specs.update({n: (0.0, 0.0) for n in names})
-        self.op = NavierStokesOperator(space, fluid, DirichletData(space, specs),
-                                       convection=convection)
-        self.wall_dirichlet = DirichletData(space, walls) if walls else None
+        super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
+                         rotation=rotation)
         self.newton_tol = newton_tol
         self.max_iterations = max_iterations
-        self._build_prolongation(names)
+        self._build_prolongation()
         self.solver = make_solver(solver, self.nz)
-        self._a0 = None
-        self.timings = {"assembly": 0.0, "factorization": 0.0, "solve": 0.0, "forces": 0.0}
 
     # ------------------------------------------------------------------ structure
     @property
@@ -95,10 +81,9 @@ class MonolithicCoupling:
         """Rigid DOFs per particle (3 with rotation, 2 without)."""
         return 3 if self.rotation else 2
 
-    def _build_prolongation(self, names):
+    def _build_prolongation(self):
         sp_ = self.space
         nu, N = sp_.nu, sp_.N
-        self.particle_dofs = [sp_.boundary_dofs(n) for n in names]
         on_particle = np.zeros(N, dtype=bool)
         for d in self.particle_dofs:
             on_particle[d] = True
@@ -113,16 +98,13 @@ class MonolithicCoupling:
         rows = [u_free, p_free]
         cols = [np.arange(u_free.size), self.nu_z + np.arange(p_free.size)]
         vals = [np.ones(u_free.size), np.ones(p_free.size)]
-        loc, comp = sp_.velocity_doflocs, sp_.component
-        for k, d in enumerate(self.particle_dofs):
+        for k in range(self.K):
+            d, c, lever = self._levers(k)
             base = u_free.size + r * k
-            c = comp[d].astype(np.int64)
             rows += [d]
-            cols += [base + c]
+            cols += [base + c.astype(np.int64)]
             vals += [np.ones(d.size)]
             if self.rotation:
-                X, Y = self.centers[:, k]
-                lever = np.where(c == 0, -(loc[1, d] - Y), loc[0, d] - X)
                 rows += [d]
                 cols += [np.full(d.size, base + 2)]
                 vals += [lever]
@@ -187,22 +169,6 @@ class MonolithicCoupling:
         G = self.ET @ Rf
         G[self.rigid_slice] += self._a0 * self._inertia_diag() * z[self.rigid_slice] - rigid_rhs
         return G, Rf, x
-
-    def fluid_forces(self, Rf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Consistent force ``(2, K)`` and torque ``(K,)`` of the fluid on each particle."""
-        sp_ = self.space
-        F = np.zeros((2, self.K))
-        T = np.zeros(self.K)
-        loc, comp = sp_.velocity_doflocs, sp_.component
-        for k, d in enumerate(self.particle_dofs):
-            r = Rf[d]
-            c = comp[d]
-            F[0, k] = -r[c == 0].sum()
-            F[1, k] = -r[c == 1].sum()
-            X, Y = self.centers[:, k]
-            lever = np.where(c == 0, -(loc[1, d] - Y), loc[0, d] - X)
-            T[k] = -(r @ lever)
-        return F, T
 
     def step(self, dt: float, dt_prev: float | None, u_n, u_prev, xi_n, xi_prev,
              F_ext, T_ext, t_new: float, p_guess=None, u_guess=None, xi_guess=None):
@@ -275,25 +241,3 @@ class MonolithicCoupling:
         self._last = (rhs_u, x)
         return {"x": x, "xi": self.rigid(z), "force": F, "torque": T, "iterations": it}
 
-
-def rigid_motions(centers, xi) -> list[RigidMotion]:
-    """Boundary data ``u = V + omega x (x - X)`` for every particle."""
-    return [RigidMotion(velocity=(xi[0, k], xi[1, k]), omega=float(xi[2, k]),
-                        center=tuple(centers[:, k])) for k in range(np.shape(xi)[1])]
-
-
-def _flow(coupling, x):
-    """The fluid part of a coupled state as a :class:`~skfem_granular.fluid.Flow`."""
-    from .fluid.flow import Flow
-
-    op = coupling.op
-    rhs_u = coupling._last[0] if getattr(coupling, "_last", None) else None
-    A_uu = getattr(coupling, "_A_uu", None)
-
-    def residual_u(xx):
-        return op.residual(xx, rhs_u=rhs_u, A_uu=A_uu)[: coupling.space.nu]
-
-    return Flow(op, op.normalize_pressure(np.array(x, dtype=float)), residual_u)
-
-
-MonolithicCoupling.flow = _flow

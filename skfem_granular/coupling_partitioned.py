@@ -19,13 +19,12 @@ import time
 import numpy as np
 
 from . import timestep as ts
-from .fluid.boundary import DirichletData
+from .coupling_base import RigidParticles
 from .fluid.errors import ConvergenceError
 from .fluid.linsolve import make_solver
-from .fluid.operator import NavierStokesOperator
 
 
-class PartitionedCoupling:
+class PartitionedCoupling(RigidParticles):
     """Staggered fluid-particle coupling; same interface as :class:`MonolithicCoupling`.
 
     Parameters
@@ -58,21 +57,8 @@ class PartitionedCoupling:
         newton_tol: float = 1e-9,
         max_iterations: int = 15,
     ):
-        self.space = space
-        self.fluid = fluid
-        self.K = int(np.asarray(mass).size)
-        self.centers = np.asarray(centers, dtype=float).reshape(2, self.K)
-        self.mass = np.asarray(mass, dtype=float).reshape(self.K)
-        self.inertia = np.asarray(inertia, dtype=float).reshape(self.K)
-        self.rotation = bool(rotation)
-        names = [f"particle{k}" for k in range(self.K)]
-        specs = dict(walls)
-        specs.update({n: (0.0, 0.0) for n in names})
-        self.op = NavierStokesOperator(
-            space, fluid, DirichletData(space, specs), convection=convection
-        )
-        self.walls = DirichletData(space, walls) if walls else None
-        self.particle_dofs = [space.boundary_dofs(n) for n in names]
+        super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
+                         rotation=rotation)
         self.subiterations = int(subiterations)
         if relaxation != "aitken" and not 0.0 < float(relaxation) <= 1.0:
             raise ValueError(f"relaxation = {relaxation!r}: must be 'aitken' or in (0, 1]")
@@ -81,36 +67,16 @@ class PartitionedCoupling:
         self.newton_tol = newton_tol
         self.max_iterations = max_iterations
         self.solver = make_solver(solver, self.op.free.size)
-        self._a0 = None
-        self.timings = {"assembly": 0.0, "factorization": 0.0, "solve": 0.0, "forces": 0.0}
-
-    def _levers(self, k):
-        sp_ = self.space
-        d = self.particle_dofs[k]
-        loc, c = sp_.velocity_doflocs[:, d], sp_.component[d]
-        X, Y = self.centers[:, k]
-        return d, c, np.where(c == 0, -(loc[1] - Y), loc[0] - X)
 
     def _boundary_values(self, x, xi, t):
-        if self.walls is not None:
-            d = self.walls.dofs
-            x[d] = self.walls.values(t)[d]
+        if self.wall_dirichlet is not None:
+            d = self.wall_dirichlet.dofs
+            x[d] = self.wall_dirichlet.values(t)[d]
         for k in range(self.K):
             d, c, lever = self._levers(k)
             x[d] = np.where(c == 0, xi[0, k], xi[1, k]) + xi[2, k] * lever
         if self.op.pinned:
             x[self.space.nu] = 0.0
-
-    def fluid_forces(self, Rf):
-        """Consistent force ``(2, K)`` and torque ``(K,)`` on each particle."""
-        F = np.zeros((2, self.K))
-        T = np.zeros(self.K)
-        for k in range(self.K):
-            d, c, lever = self._levers(k)
-            r = Rf[d]
-            F[:, k] = -r[c == 0].sum(), -r[c == 1].sum()
-            T[k] = -(r @ lever)
-        return F, T
 
     def _fluid_solve(self, x, rhs_u, scale):
         op = self.op
@@ -219,9 +185,3 @@ class PartitionedCoupling:
             f"partitioned coupling diverged at t={t:.6g} (|V| = {np.abs(xi).max():.3g}): the "
             "added-mass instability of light particles; use the monolithic coupling"
         )
-
-    def flow(self, x):
-        """The fluid state as a :class:`~skfem_granular.fluid.Flow`."""
-        from .coupling import _flow
-
-        return _flow(self, x)

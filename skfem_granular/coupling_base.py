@@ -1,0 +1,86 @@
+"""What both couplings share: rigid particles as boundaries of one fluid mesh.
+
+Particle ``k`` is the named boundary ``"particle{k}"``; its velocity DOFs
+follow the rigid motion ``u = V + omega x (x - X)`` about the reference
+centre ``X`` the particle had when the mesh was built (see
+:mod:`skfem_granular.coupling`). The fluid force on it is the consistent
+(reaction) force, read from the momentum residual on those DOFs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .fluid.boundary import DirichletData
+from .fluid.operator import NavierStokesOperator
+
+
+class RigidParticles:
+    """Common state of :class:`MonolithicCoupling` and :class:`PartitionedCoupling`.
+
+    Parameters
+    ----------
+    space : TaylorHood
+        Discretisation of the fluid mesh.
+    fluid : Fluid
+    walls : dict
+        ``{boundary name: velocity spec}`` of the fixed walls.
+    centers : (2, K) array_like
+        Reference centres of the particles on this mesh.
+    mass, inertia : (K,) array_like
+        Masses and moments of inertia per unit depth.
+    convection, rotation : bool
+        Navier-Stokes or unsteady Stokes; whether particles may rotate.
+    """
+
+    def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
+                 convection: bool = True, rotation: bool = True):
+        self.space = space
+        self.fluid = fluid
+        self.K = int(np.asarray(mass).size)
+        self.centers = np.asarray(centers, dtype=float).reshape(2, self.K)
+        self.mass = np.asarray(mass, dtype=float).reshape(self.K)
+        self.inertia = np.asarray(inertia, dtype=float).reshape(self.K)
+        self.rotation = bool(rotation)
+        names = [f"particle{k}" for k in range(self.K)]
+        specs = dict(walls)
+        specs.update({n: (0.0, 0.0) for n in names})
+        self.op = NavierStokesOperator(space, fluid, DirichletData(space, specs),
+                                       convection=convection)
+        self.wall_dirichlet = DirichletData(space, walls) if walls else None
+        self.particle_dofs = [space.boundary_dofs(n) for n in names]
+        self._a0 = None
+        self.timings = {"assembly": 0.0, "factorization": 0.0, "solve": 0.0, "forces": 0.0}
+
+    def _levers(self, k: int):
+        """DOFs of particle ``k``, their components and ``e_z x (x - X)`` at them."""
+        sp_ = self.space
+        d = self.particle_dofs[k]
+        loc, c = sp_.velocity_doflocs[:, d], sp_.component[d]
+        X, Y = self.centers[:, k]
+        return d, c, np.where(c == 0, -(loc[1] - Y), loc[0] - X)
+
+    def fluid_forces(self, Rf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Consistent force ``(2, K)`` and torque ``(K,)`` of the fluid on each particle."""
+        F = np.zeros((2, self.K))
+        T = np.zeros(self.K)
+        for k in range(self.K):
+            d, c, lever = self._levers(k)
+            r = Rf[d]
+            F[0, k] = -r[c == 0].sum()
+            F[1, k] = -r[c == 1].sum()
+            T[k] = -(r @ lever)
+        return F, T
+
+    def flow(self, x):
+        """The fluid part of a coupled state as a :class:`~skfem_granular.fluid.Flow`."""
+        from .fluid.flow import Flow
+
+        op = self.op
+        rhs_u = self._last[0] if getattr(self, "_last", None) else None
+        A_uu = getattr(self, "_A_uu", None)
+
+        def residual_u(xx):
+            return op.residual(xx, rhs_u=rhs_u, A_uu=A_uu)[: self.space.nu]
+
+        return Flow(op, op.normalize_pressure(np.array(x, dtype=float)), residual_u)
