@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import os
 import tempfile
+import xml.etree.ElementTree as ET
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -157,3 +158,23 @@ class PVDSeries:
         lines += ["  </Collection>", "</VTKFile>", ""]
         text = "\n".join(lines)
         atomic_write(self.path, lambda tmp: Path(tmp).write_text(text))
+
+
+def read_pvd(path) -> list[tuple[float, Path]]:
+    """``(time, file)`` pairs of a PVD collection, in file order.
+
+    Examples
+    --------
+    >>> read_pvd("out/single_particle/flow.pvd")[:1]  # doctest: +SKIP
+    [(0.0, PosixPath('out/single_particle/flow_00000.vtu'))]
+    """
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except FileNotFoundError:
+        raise ValueError(f"PVD file {str(path)!r}: not found") from None
+    except ET.ParseError as exc:
+        raise ValueError(f"PVD file {str(path)!r}: not valid XML ({exc})") from None
+    return [
+        (float(d.get("timestep", "nan")), path.parent / d.get("file")) for d in root.iter("DataSet")
+    ]

@@ -26,31 +26,31 @@ from __future__ import annotations
 
 import os
 import sys
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .io import read_pvd  # noqa: F401  (re-exported: frames of a run)
+
 # field name -> (colormap, unit, symmetric colour range, colour of arrows and streamlines)
-FIELDS = {
-    "speed": ("viridis", "m/s", False, "white"),
-    "pressure": ("coolwarm", "Pa", True, "black"),
-    "vorticity": ("RdBu_r", "1/s", True, "black"),
-    "mesh": (None, "", False, "black"),
-}
-VECTORS = (None, "glyphs", "streamlines")
-
-CORE_FILL = "#c8c8c8"
-CORE_EDGE = (0, 0, 0)
-SHADOW_EDGE = (230, 120, 0)
-WALL_FILL = "#8c8c8c"
-MESH_EDGE = "#2b5d9b"
-
-_PAD = 12  # pixels around the plot area
-_TITLE = 36  # pixels above it for the title
-_BAR = 150  # pixels right of it for the colour bar
-
+from .render_layers import (  # noqa: F401  (re-exported names)
+    _BAR,
+    _PAD,
+    _TITLE,
+    CORE_EDGE,
+    CORE_FILL,
+    FIELDS,
+    MESH_EDGE,
+    SHADOW_EDGE,
+    VECTORS,
+    WALL_FILL,
+    _draw,
+    _grid,
+    _mask,
+    _streamlines,
+    _surface,
+)
 
 _GL_HELP = (
     "off-screen rendering needs the EGL and Mesa libraries (Debian/Ubuntu: apt-get "
@@ -198,234 +198,11 @@ def _widen(clim) -> tuple[float, float]:
     return (lo - m, hi + m) if m > 0 else (lo - 1.0, hi + 1.0)
 
 
-def _grid(box, density: int, pv, flow):
-    """Points of a regular grid in ``box`` that lie inside the flow mesh, sampled."""
-    x0, y0, x1, y1 = box
-    h = min(x1 - x0, y1 - y0) / density
-    nx, ny = max(int((x1 - x0) / h), 1), max(int((y1 - y0) / h), 1)
-    X, Y = np.meshgrid(
-        x0 + (np.arange(nx) + 0.5) * (x1 - x0) / nx, y0 + (np.arange(ny) + 0.5) * (y1 - y0) / ny
-    )
-    cloud = pv.PolyData(np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)]))
-    sampled = cloud.sample(flow)
-    keep = np.asarray(sampled.point_data["vtkValidPointMask"]).astype(bool)
-    return sampled.extract_points(keep, adjacent_cells=False), h
-
-
 def _read(pv, path, what: str):
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{what} {str(path)!r}: not found")
     return pv.read(path)
-
-
-def _draw(
-    pl, pv, flow, particles, *, field, vectors, density, box, clim, arrow_scale, edges, title, z
-):
-    """Add the actors of one frame to the plotter ``pl``."""
-    cmap, unit, _, ink = FIELDS[field]
-    surface = _surface(pv, flow)
-    if field == "mesh":
-        # straight edges of the P2 triangles through their corner nodes
-        cells = flow.cells_dict[pv.CellType.QUADRATIC_TRIANGLE][:, :3]
-        faces = np.column_stack([np.full(len(cells), 3), cells]).ravel()
-        linear = pv.PolyData(flow.points, faces=faces)
-        pl.add_mesh(linear, color="white", lighting=False)
-        pl.add_mesh(
-            linear.translate((0, 0, z[0])),
-            style="wireframe",
-            color=MESH_EDGE,
-            line_width=1,
-            lighting=False,
-        )
-    else:
-        actor = pl.add_mesh(
-            surface,
-            scalars=field,
-            cmap=cmap,
-            clim=clim,
-            lighting=False,
-            interpolate_before_map=True,
-            show_scalar_bar=False,
-        )
-        if edges:
-            cells = flow.cells_dict[pv.CellType.QUADRATIC_TRIANGLE][:, :3]
-            faces = np.column_stack([np.full(len(cells), 3), cells]).ravel()
-            pl.add_mesh(
-                pv.PolyData(flow.points, faces=faces).translate((0, 0, z[0])),
-                style="wireframe",
-                color="white",
-                opacity=0.35,
-                line_width=1,
-                lighting=False,
-            )
-        W, H = pl.window_size
-        bar = pl.add_scalar_bar(
-            mapper=actor.mapper,
-            title=f"{field} ({unit})",
-            n_labels=5,
-            fmt="%.2e",
-            vertical=True,
-            position_x=(W - _BAR + 10) / W,
-            position_y=(_PAD + 10) / H,
-            width=(_BAR - 30) / W,
-            height=min(0.8, 400 / H),
-            color="black",
-            title_font_size=14,
-            label_font_size=12,
-        )
-        bar.SetVerticalTitleSeparation(6)
-    if vectors == "glyphs":
-        points, h = _grid(box, density, pv, flow)
-        if points.n_points:
-            u = np.asarray(points.point_data["velocity"], dtype=float)
-            length = np.linalg.norm(u, axis=1)
-            scale = arrow_scale
-            if scale is None:
-                scale = 0.9 * h / length.max() if length.max() > 0 else 0.0
-            points.point_data["arrow_length"] = length * scale
-            keep = length * scale > 0.05 * h
-            if keep.any():
-                points = points.extract_points(keep, adjacent_cells=False)
-                arrow = pv.Arrow(tip_length=0.35, tip_radius=0.14, shaft_radius=0.04)
-                glyphs = points.glyph(
-                    orient="velocity", scale="arrow_length", factor=1.0, geom=arrow
-                )
-                pl.add_mesh(glyphs.translate((0, 0, z[1])), color=ink, lighting=False)
-    elif vectors == "streamlines":
-        lines = _streamlines(pv, surface, flow, box, density)
-        if lines.n_points:
-            pl.add_mesh(lines.translate((0, 0, z[1])), color=ink, line_width=1.2, lighting=False)
-    if particles is not None:
-        kind = np.asarray(particles.cell_data["kind"])
-        walls = particles.extract_cells(np.flatnonzero(kind == 2))
-        cores = particles.extract_cells(np.flatnonzero(kind == 1))
-        shadows = particles.extract_cells(np.flatnonzero(kind == 0))
-        if walls.n_cells:
-            pl.add_mesh(walls, color=WALL_FILL, lighting=False)
-        if cores.n_cells:
-            pl.add_mesh(cores.translate((0, 0, z[2])), color=CORE_FILL, lighting=False)
-        if shadows.n_cells:
-            pl.add_mesh(
-                shadows.translate((0, 0, z[3])),
-                style="wireframe",
-                color=SHADOW_EDGE,
-                line_width=1.5,
-                lighting=False,
-            )
-        if cores.n_cells:
-            pl.add_mesh(
-                cores.translate((0, 0, z[4])),
-                style="wireframe",
-                color=CORE_EDGE,
-                line_width=2.5,
-                lighting=False,
-            )
-    _mask(pl, pv, box, z[4] * 1.2)
-    if title:
-        pl.add_text(
-            title, position=(_PAD, pl.window_size[1] - _TITLE + 6), font_size=12, color="black"
-        )
-
-
-def _streamlines(pv, surface, flow, box, density: int):
-    """Streamlines about ``sep`` apart, ``sep`` = shorter side of ``box`` / ``density``.
-
-    Traces from a grid of seeds (fastest first) and keeps the stretches of
-    each line that stay clear of the lines kept before, on an occupancy grid
-    of cells ``sep / 3`` (a greedy variant of Jobard and Lefer's method;
-    VTK's vtkEvenlySpacedStreamlines2D crashed intermittently, VTK 9.7).
-    """
-    seeds, sep = _grid(box, density, pv, flow)
-    if seeds.n_points == 0:
-        return pv.PolyData()
-    speed = np.linalg.norm(np.asarray(seeds.point_data["velocity"]), axis=1)
-    if speed.max() == 0:
-        return pv.PolyData()
-    x0, y0, x1, y1 = box
-    traced = surface.streamlines_from_source(
-        seeds,
-        vectors="velocity",
-        integration_direction="both",
-        step_unit="l",
-        integrator_type=4,
-        interpolator_type="cell",
-        initial_step_length=sep / 3,
-        max_steps=1000,
-        max_length=2 * (x1 - x0 + y1 - y0),
-        terminal_speed=1e-6 * speed.max(),
-        compute_vorticity=False,
-    )
-    if traced.n_points == 0:
-        return pv.PolyData()
-    # each seed has a forward and a backward piece, both starting at the seed
-    conn, pieces, k = np.asarray(traced.lines), {}, 0
-    for seed in np.asarray(traced.cell_data["SeedIds"]):
-        n = conn[k]
-        pieces.setdefault(int(seed), []).append(conn[k + 1 : k + 1 + n])
-        k += n + 1
-    P = np.asarray(traced.points)
-    c = sep / 3
-    nx, ny = int((x1 - x0) / c) + 5, int((y1 - y0) / c) + 5
-    cell = np.column_stack(
-        [
-            np.clip(((P[:, 0] - x0) / c).astype(int) + 2, 2, nx - 3),
-            np.clip(((P[:, 1] - y0) / c).astype(int) + 2, 2, ny - 3),
-        ]
-    )
-    owner = np.full((nx, ny), -1, dtype=np.int64)  # line that first entered a cell
-    runs = []
-    for line, seed in enumerate(sorted(pieces, key=lambda s: -speed[s])):
-        i, j = cell[pieces[seed][0][0]]
-        if np.any(owner[i - 2 : i + 3, j - 2 : j + 3] >= 0):
-            continue  # the seed lies within about 2/3 sep of a line
-        kept = []
-        for ids in pieces[seed]:
-            stop = len(ids)
-            for n, p in enumerate(ids):
-                i, j = cell[p]
-                near = owner[i - 1 : i + 2, j - 1 : j + 2]
-                if np.any((near >= 0) & (near != line)):
-                    stop = n  # within about sep/3..sep of an earlier line
-                    break
-                if owner[i, j] < 0:
-                    owner[i, j] = line
-            kept.append(ids[:stop])
-        ids = np.r_[kept[0][::-1], *(k[1:] for k in kept[1:])]
-        if len(ids) >= 8:
-            runs.append(ids)
-        else:
-            owner[owner == line] = -1
-    if not runs:
-        return pv.PolyData()
-    lines = np.concatenate([np.r_[len(r), r] for r in runs])
-    return pv.PolyData(P, lines=lines)
-
-
-def _surface(pv, flow):
-    """Linear triangles of the P2 mesh, each quadratic triangle subdivided twice."""
-    from vtkmodules.vtkFiltersGeometry import vtkDataSetSurfaceFilter
-
-    f = vtkDataSetSurfaceFilter()
-    f.SetInputData(flow)
-    f.SetNonlinearSubdivisionLevel(2)
-    f.Update()
-    return pv.wrap(f.GetOutput())
-
-
-def _mask(pl, pv, box, z):
-    """White bands that hide whatever lies outside ``box`` (walls, a zoomed mesh)."""
-    x0, y0, x1, y1 = box
-    L = 100 * max(x1 - x0, y1 - y0)
-    bands = [
-        (x0 - L, y0 - L, x0, y1 + L),
-        (x1, y0 - L, x1 + L, y1 + L),
-        (x0, y0 - L, x1, y0),
-        (x0, y1, x1, y1 + L),
-    ]
-    points = np.array([[(a, b, z), (c, b, z), (c, d, z), (a, d, z)] for a, b, c, d in bands])
-    faces = np.column_stack([np.full(4, 4), np.arange(16).reshape(4, 4)]).ravel()
-    pl.add_mesh(pv.PolyData(points.reshape(-1, 3), faces=faces), color="white", lighting=False)
 
 
 def _check(field, vectors, density):
@@ -580,177 +357,10 @@ def _save_png(image, path: Path) -> None:
     Image.fromarray(image).save(path)
 
 
-def read_pvd(path) -> list[tuple[float, Path]]:
-    """``(time, file)`` pairs of a PVD collection, in file order.
+def __getattr__(name):
+    # render_series lives in skfem_granular.animation (imports this module)
+    if name == "render_series":
+        from .animation import render_series
 
-    Examples
-    --------
-    >>> read_pvd("out/single_particle/flow.pvd")[:1]  # doctest: +SKIP
-    [(0.0, PosixPath('out/single_particle/flow_00000.vtu'))]
-    """
-    path = Path(path)
-    try:
-        root = ET.parse(path).getroot()
-    except FileNotFoundError:
-        raise ValueError(f"PVD file {str(path)!r}: not found") from None
-    except ET.ParseError as exc:
-        raise ValueError(f"PVD file {str(path)!r}: not valid XML ({exc})") from None
-    return [
-        (float(d.get("timestep", "nan")), path.parent / d.get("file")) for d in root.iter("DataSet")
-    ]
-
-
-def render_series(
-    out_dir,
-    path_animation,
-    *,
-    field: str = "speed",
-    vectors: str | None = None,
-    every: int = 1,
-    fps: float = 10.0,
-    density: int = 16,
-    box=None,
-    window_size=None,
-    clim=None,
-    edges: bool = False,
-    outlines: bool = True,
-) -> Path:
-    """Render the frames of a run directory as an animated GIF or an MP4.
-
-    Parameters
-    ----------
-    out_dir : str or Path
-        A run's output directory with ``flow.pvd`` (and ``particles.pvd``).
-    path_animation : str or Path
-        ``*.gif`` (written with Pillow) or ``*.mp4`` (needs ``imageio`` and
-        ``imageio-ffmpeg``).
-    field, vectors, density, box, window_size, edges
-        As for :func:`render_frame`; the box and the window are the same
-        for all frames.
-    every : int
-        Use every this many frames of the series (the first one always).
-    fps : float
-        Frames per second of the animation.
-    clim : (lo, hi), optional
-        Colour range; default: the range over all frames used, so colours
-        compare across frames. Arrows are scaled by the largest speed of
-        all frames too.
-    outlines : bool
-        Draw the particles of ``particles.pvd`` (when it exists).
-
-    Returns
-    -------
-    Path
-        ``path_animation``.
-    """
-    _check(field, vectors, density)
-    if not (isinstance(every, int) and every >= 1):
-        raise ValueError(f"every = {every!r}: must be an integer >= 1")
-    if not fps > 0:
-        raise ValueError(f"fps = {fps!r}: must be > 0")
-    path_animation = Path(path_animation)
-    suffix = path_animation.suffix.lower()
-    if suffix not in (".gif", ".mp4"):
-        raise ValueError(f"path_animation {str(path_animation)!r}: must end in .gif or .mp4")
-    out_dir = Path(out_dir)
-    frames = read_pvd(out_dir / "flow.pvd")[::every]
-    if not frames:
-        raise ValueError(f"{str(out_dir / 'flow.pvd')!r}: no frames")
-    outlines_by_time = {}
-    if outlines and (out_dir / "particles.pvd").is_file():
-        outlines_by_time = dict(read_pvd(out_dir / "particles.pvd"))
-    pv = _pyvista()
-    flows = [_read(pv, f, "flow frame") for _, f in frames]
-    view = _View.fit(
-        box if box is not None else _default_box(flows[0]), window_size, colour_bar=field != "mesh"
-    )
-    if field != "mesh" and clim is None:
-        ranges = np.array([_field_range(f, field, view.box) for f in flows])
-        clim = (ranges[:, 0].min(), ranges[:, 1].max())
-    clim = None if field == "mesh" else _widen(clim)
-    arrow_scale = None
-    if vectors == "glyphs":
-        umax = max(float(np.max(f.point_data["speed"], initial=0.0)) for f in flows)
-        h = min(view.box[2] - view.box[0], view.box[3] - view.box[1]) / density
-        arrow_scale = 0.9 * h / umax if umax > 0 else 0.0
-    writer = _writer(path_animation, fps)
-    z = _layers(view)
-    pl = _plotter(pv, view)
-    try:
-        for (t, _), flow in zip(frames, flows, strict=True):
-            pfile = outlines_by_time.get(t)
-            particles = None if pfile is None else _read(pv, pfile, "particles frame")
-            pl.suppress_rendering = True  # one render per frame, in _snapshot
-            pl.clear()
-            _draw(
-                pl,
-                pv,
-                flow,
-                particles,
-                field=field,
-                vectors=vectors,
-                density=density,
-                box=view.box,
-                clim=clim,
-                arrow_scale=arrow_scale,
-                edges=edges,
-                title=_title(field, vectors, t),
-                z=z,
-            )
-            writer.append(_snapshot(pl, view))
-    finally:
-        pl.close()
-    writer.close()
-    return path_animation
-
-
-class _GifWriter:
-    """Collects frames and writes an animated GIF with Pillow on close."""
-
-    def __init__(self, path: Path, fps: float):
-        self.path, self.fps, self.frames = path, fps, []
-
-    def append(self, image) -> None:
-        from PIL import Image
-
-        self.frames.append(Image.fromarray(image).quantize(colors=255, dither=0))
-
-    def close(self) -> None:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        first, *rest = self.frames
-        first.save(
-            self.path,
-            save_all=True,
-            append_images=rest,
-            loop=0,
-            duration=int(round(1000 / self.fps)),
-            disposal=1,
-            optimize=False,
-        )
-
-
-class _Mp4Writer:
-    def __init__(self, path: Path, fps: float):
-        try:
-            import imageio.v2 as imageio
-
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self.writer = imageio.get_writer(path, fps=fps, macro_block_size=1)
-        except (ImportError, ValueError) as exc:
-            raise ImportError(
-                f"MP4 output needs imageio and imageio-ffmpeg ({exc}); "
-                "pip install imageio imageio-ffmpeg, or write a .gif"
-            ) from exc
-
-    def append(self, image) -> None:
-        # H.264 in yuv420p needs an even width and height: pad with white
-        h, w = image.shape[:2]
-        pad = ((0, h % 2), (0, w % 2), (0, 0))
-        self.writer.append_data(np.pad(image, pad, constant_values=255))
-
-    def close(self) -> None:
-        self.writer.close()
-
-
-def _writer(path: Path, fps: float):
-    return _GifWriter(path, fps) if path.suffix.lower() == ".gif" else _Mp4Writer(path, fps)
+        return render_series
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
