@@ -147,3 +147,23 @@ def test_stability_notebook(out_dir):
     cases = {row["case"] for row in v["results"]}
     assert len(cases) == 4
     assert all(row["outcome"] for row in v["results"])
+
+
+def test_accuracy_vs_cost_notebook(out_dir):
+    """Faxen drag study (analytic reference) and the single-particle study, smoke grids."""
+    v = run_notebook(
+        "02_accuracy_vs_cost.ipynb",
+        ["faxen_rows", "faxen_orders", "faxen_best", "faxen_failed", "particle_rows", "rounding"],
+        out_dir,
+    )
+    assert v["faxen_failed"] == {}
+    rows = v["faxen_rows"]
+    assert rows and all(r["reference"].startswith("analytic Faxen") for r in rows)
+    # errors against the analytic drag fall with resolution in every family with >1 run
+    assert all(p > 1.0 for p in v["faxen_orders"].values()), v["faxen_orders"]
+    assert v["faxen_best"]["error"] < 0.02
+    # the single particle is measured against its finest run, named in the table
+    prow = v["particle_rows"]
+    assert prow and all(r["reference"].startswith("finest run") for r in prow)
+    # rounding is far below discretisation error at these sizes (README: 1e-17..1e-13)
+    assert v["rounding"]["mirror_max"] is not None and v["rounding"]["mirror_max"] < 1e-12
