@@ -26,8 +26,9 @@ def orders(rows) -> dict:
     out = {}
     for fam in ("uniform", "graded", "sigma"):
         for sig in sorted({r["sigma"] or 0 for r in rows if r["family"] == fam}):
-            sel = [r for r in rows if r["family"] == fam and not r["seed"]
-                   and (r["sigma"] or 0) == sig]
+            sel = [
+                r for r in rows if r["family"] == fam and not r["seed"] and (r["sigma"] or 0) == sig
+            ]
             name = fam if fam != "sigma" else f"graded sigma={sig:g}"
             if len(sel) > 1:
                 out[name] = 2 * fit_order([r["dofs"] for r in sel], [r["error"] for r in sel])
@@ -71,6 +72,19 @@ def pareto_front(points):
     return front
 
 
+def _finish(plt, fig, ax, path, xlabel, title, fontsize=8) -> Path:
+    """Labels, grid and legend of an error plot; save to ``path`` and close."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("relative error")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=fontsize)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
 def plot_pareto(rows, path, title=""):
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
@@ -85,17 +99,12 @@ def plot_pareto(rows, path, title=""):
         allp += list(zip(x, y, strict=True))
     if allp:
         f = [allp[i] for i in pareto_front(allp)]
-        ax.step([p[0] for p in f], [p[1] for p in f], "k--", where="post", lw=1,
-                label="Pareto front")
-    ax.set_xlabel("wall time per run [s]")
-    ax.set_ylabel("relative error")
-    ax.set_title(title or "error against cost")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+        ax.step(
+            [p[0] for p in f], [p[1] for p in f], "k--", where="post", lw=1, label="Pareto front"
+        )
+    return _finish(
+        plt, fig, ax, path, "wall time per run [s]", title or "error against cost", fontsize=8
+    )
 
 
 def plot_convergence(rows, path, title=""):
@@ -117,15 +126,15 @@ def plot_convergence(rows, path, title=""):
         if len(x) > 1:
             cst = np.exp(np.mean(np.log(y) + p / 2 * np.log(x)))
             ax.loglog(x, cst * x ** (-p / 2), "-", color=c, lw=1)
-    ax.set_xlabel("DOFs")
-    ax.set_ylabel("relative error")
-    ax.set_title(title or "convergence (orders h-equivalent: err ~ DOFs^(-p/2))")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return _finish(
+        plt,
+        fig,
+        ax,
+        path,
+        "DOFs",
+        title or "convergence (orders h-equivalent: err ~ DOFs^(-p/2))",
+        fontsize=8,
+    )
 
 
 def sweet_spot(rows, family="graded"):
@@ -134,10 +143,22 @@ def sweet_spot(rows, family="graded"):
     Returns ``(N*, (A, a), (B, b))``: ``N*`` the DOFs where the fitted lines
     cross (beyond it refining cannot reduce the error), None without a crossing.
     """
-    d = [r for r in rows if r["family"] == family and not r["seed"] and r["error"]
-         and np.isfinite(r["error"]) and r["error"] > 0]
-    q = [r for r in rows if r["rounding_renumber"] and np.isfinite(r["rounding_renumber"])
-         and r["rounding_renumber"] > 0]
+    d = [
+        r
+        for r in rows
+        if r["family"] == family
+        and not r["seed"]
+        and r["error"]
+        and np.isfinite(r["error"])
+        and r["error"] > 0
+    ]
+    q = [
+        r
+        for r in rows
+        if r["rounding_renumber"]
+        and np.isfinite(r["rounding_renumber"])
+        and r["rounding_renumber"] > 0
+    ]
     if len(d) < 2 or len(q) < 2:
         return None, None, None
     a = fit_order([r["dofs"] for r in d], [r["error"] for r in d])
@@ -153,26 +174,47 @@ def plot_fig2(rows, path, title=""):
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     for fam in ("uniform", "graded"):
-        sel = sorted((r for r in rows if r["family"] == fam and not r["seed"] and r["error"]
-                      and np.isfinite(r["error"]) and r["error"] > 0), key=lambda r: r["dofs"])
+        sel = sorted(
+            (
+                r
+                for r in rows
+                if r["family"] == fam
+                and not r["seed"]
+                and r["error"]
+                and np.isfinite(r["error"])
+                and r["error"] > 0
+            ),
+            key=lambda r: r["dofs"],
+        )
         m, c = STYLE[fam]
-        ax.loglog([r["dofs"] for r in sel], [r["error"] for r in sel], m + "-", color=c,
-                  label=f"discretisation error, {_label(fam)}")
-    for col, m, lab in (("rounding_renumber", "x", "rounding: spread over node renumberings"),
-                        ("rounding_field", "1", "rounding: renumbering spread, pressure field"),
-                        ("rounding_mirror", "+", "rounding: cross-stream/stream, mirror mesh")):
-        sel = [r for r in rows if not r["seed"] and r.get(col) is not None
-               and np.isfinite(r[col])]
+        ax.loglog(
+            [r["dofs"] for r in sel],
+            [r["error"] for r in sel],
+            m + "-",
+            color=c,
+            label=f"discretisation error, {_label(fam)}",
+        )
+    for col, m, lab in (
+        ("rounding_renumber", "x", "rounding: spread over node renumberings"),
+        ("rounding_field", "1", "rounding: renumbering spread, pressure field"),
+        ("rounding_mirror", "+", "rounding: cross-stream/stream, mirror mesh"),
+    ):
+        sel = [r for r in rows if not r["seed"] and r.get(col) is not None and np.isfinite(r[col])]
         if not sel:
             continue
         pos = [r for r in sel if r[col] > 0]
         color = {"rounding_renumber": "k", "rounding_field": "C5"}.get(col, "C3")
-        ax.loglog([r["dofs"] for r in pos], [r[col] for r in pos], m, ms=8, color=color,
-                  label=lab)
+        ax.loglog([r["dofs"] for r in pos], [r[col] for r in pos], m, ms=8, color=color, label=lab)
         zero = [r for r in sel if r[col] == 0]
         if zero:
-            ax.loglog([r["dofs"] for r in zero], [1e-17] * len(zero), m, ms=8, color="0.5",
-                      label=f"{lab.split(':')[1].strip()} = 0 exactly (drawn at 1e-17)")
+            ax.loglog(
+                [r["dofs"] for r in zero],
+                [1e-17] * len(zero),
+                m,
+                ms=8,
+                color="0.5",
+                label=f"{lab.split(':')[1].strip()} = 0 exactly (drawn at 1e-17)",
+            )
     n_star, disc, rnd = sweet_spot(rows)
     dofs = [r["dofs"] for r in rows]
     if disc and rnd:
@@ -180,32 +222,47 @@ def plot_fig2(rows, path, title=""):
         hi_plot = max(hi, n_star or hi) * 1.5
         x = np.geomspace(lo, hi_plot, 100)
         ax.loglog(x, disc[0] * x ** -disc[1], ":", color="C1", lw=1)
-        ax.loglog(x, rnd[0] * x ** rnd[1], ":", color="k", lw=1,
-                  label=f"fits: disc ~ N^-{disc[1]:.2f}, rounding ~ N^{rnd[1]:.2f}")
+        ax.loglog(
+            x,
+            rnd[0] * x ** rnd[1],
+            ":",
+            color="k",
+            lw=1,
+            label=f"fits: disc ~ N^-{disc[1]:.2f}, rounding ~ N^{rnd[1]:.2f}",
+        )
         if n_star:
             extra = " (extrapolated)" if n_star > hi else ""
-            ax.axvline(n_star, color="C2", lw=2, alpha=0.6,
-                       label=f"sweet spot (fits cross) N = {n_star:.2g} DOFs{extra}")
-    ax.set_xlabel("DOFs")
-    ax.set_ylabel("relative error")
-    ax.set_title(title or "discretisation vs rounding error (paper Fig. 2, measured)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+            ax.axvline(
+                n_star,
+                color="C2",
+                lw=2,
+                alpha=0.6,
+                label=f"sweet spot (fits cross) N = {n_star:.2g} DOFs{extra}",
+            )
+    return _finish(
+        plt,
+        fig,
+        ax,
+        path,
+        "DOFs",
+        title or "discretisation vs rounding error (paper Fig. 2, measured)",
+        fontsize=7,
+    )
 
 
 def all_plots(rows, out_dir, study):
     """``pareto.png``, ``convergence.png`` and ``fig2.png`` in ``out_dir``."""
     out_dir = Path(out_dir)
     q = "v_y(t_end)" if study == "single-particle" else "Faxen drag"
-    return [plot_pareto(rows, out_dir / "pareto.png", f"{study}: {q} error against wall time"),
-            plot_convergence(rows, out_dir / "convergence.png",
-                             f"{study}: {q} error against DOFs"),
-            plot_fig2(rows, out_dir / "fig2.png",
-                      f"{study}: discretisation vs rounding (paper Fig. 2, measured)")]
+    return [
+        plot_pareto(rows, out_dir / "pareto.png", f"{study}: {q} error against wall time"),
+        plot_convergence(rows, out_dir / "convergence.png", f"{study}: {q} error against DOFs"),
+        plot_fig2(
+            rows,
+            out_dir / "fig2.png",
+            f"{study}: discretisation vs rounding (paper Fig. 2, measured)",
+        ),
+    ]
 
 
 def _fmt(v, full=False):
@@ -225,23 +282,48 @@ def write_tables(rows, out_dir, study, smoke) -> list[Path]:
         w = csv.DictWriter(fh, fieldnames=COLUMNS)
         w.writeheader()
         w.writerows({c: _fmt(r[c], full=True) for c in COLUMNS} for r in rows)
-    cols = ("family", "n_sides" if study == "faxen" else "h", "delta_l", "sigma", "dt", "seed",
-            "vertices", "p2_nodes", "dofs", "wall_time", "wall_solve", "peak_rss_mb", "value",
-            "error", "error_curve", "rounding_mirror", "rounding_renumber", "rounding_field")
+    cols = (
+        "family",
+        "n_sides" if study == "faxen" else "h",
+        "delta_l",
+        "sigma",
+        "dt",
+        "seed",
+        "vertices",
+        "p2_nodes",
+        "dofs",
+        "wall_time",
+        "wall_solve",
+        "peak_rss_mb",
+        "value",
+        "error",
+        "error_curve",
+        "rounding_mirror",
+        "rounding_renumber",
+        "rounding_field",
+    )
     drop = ("dt", "error_curve", "h", "delta_l") if study == "faxen" else ("rounding_field",)
     cols = tuple(c for c in cols if c not in drop)
     refs = sorted({r["reference"] for r in rows if r["reference"]})
-    lines = [f"# {study} study{' (smoke)' if smoke else ''}", "",
-             f"quantity: {rows[0]['quantity'] if rows else ''}; reference: " + "; ".join(refs),
-             "error: relative to the reference; error_curve: max |v_y(t) - v_y,ref(t)| / "
-             "max |v_y,ref|; rounding_mirror: cross-stream/stream ratio on mirror-symmetric "
-             "meshes (rounding alone); rounding_renumber: relative spread over node "
-             "renumberings (single particle: of the whole v_y curve); rounding_field: "
-             "the same for the pressure at 74 fixed points; wall times in s; "
-             "peak_rss_mb: peak resident memory of the worker process.", "",
-             "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines = [
+        f"# {study} study{' (smoke)' if smoke else ''}",
+        "",
+        f"quantity: {rows[0]['quantity'] if rows else ''}; reference: " + "; ".join(refs),
+        "error: relative to the reference; error_curve: max |v_y(t) - v_y,ref(t)| / "
+        "max |v_y,ref|; rounding_mirror: cross-stream/stream ratio on mirror-symmetric "
+        "meshes (rounding alone); rounding_renumber: relative spread over node "
+        "renumberings (single particle: of the whole v_y curve); rounding_field: "
+        "the same for the pressure at 74 fixed points; wall times in s; "
+        "peak_rss_mb: peak resident memory of the worker process.",
+        "",
+        "| " + " | ".join(cols) + " |",
+        "|" + "---|" * len(cols),
+    ]
     lines += ["| " + " | ".join(_fmt(r[c]) for c in cols) + " |" for r in rows]
-    lines += ["", "Fitted orders (h-equivalent, err ~ DOFs^(-p/2)): "
-              + ", ".join(f"{k} {v:.2f}" for k, v in orders(rows).items())]
+    lines += [
+        "",
+        "Fitted orders (h-equivalent, err ~ DOFs^(-p/2)): "
+        + ", ".join(f"{k} {v:.2f}" for k, v in orders(rows).items()),
+    ]
     (out_dir / "table.md").write_text("\n".join(lines) + "\n")
     return [out_dir / "table.csv", out_dir / "table.md"]
