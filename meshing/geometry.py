@@ -125,6 +125,10 @@ def subdivide(V: NDArray[np.float64], delta_l: float | None) -> NDArray[np.float
     if delta_l is None:
         return V
     L = outline_lengths(V)
+    if L.sum() / delta_l > MAX_OUTLINE_NODES:
+        raise ValueError(f"delta_l = {delta_l:.3g}: would put {L.sum() / delta_l:.2g} nodes on "
+                         f"one outline; must be >= {L.sum() / MAX_OUTLINE_NODES:.3g} (at most "
+                         f"{MAX_OUTLINE_NODES:.0e} nodes per outline)")
     n = np.maximum(1, np.ceil(L / delta_l * (1.0 - 1e-12))).astype(int)
     W = np.roll(V, -1, axis=1)
     parts = [V[:, k:k + 1] + (W[:, k:k + 1] - V[:, k:k + 1]) * (np.arange(n[k]) / n[k])
@@ -188,6 +192,10 @@ def polygons_overlap(P: NDArray[np.float64], Q: NDArray[np.float64]) -> bool:
     return True
 
 
+#: Most nodes one particle outline may get from ``delta_l``.
+MAX_OUTLINE_NODES = 100_000
+#: Most triangles a uniform mesh may have (about 2 GB of P2/P1 system at this size).
+MAX_ELEMENTS = 5_000_000
 #: Smallest particle extent relative to the domain that meshing accepts.
 MIN_RELATIVE_SIZE = 1e-5
 

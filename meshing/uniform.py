@@ -6,6 +6,7 @@ import numpy as np
 import skfem
 from numpy.typing import NDArray
 
+from .geometry import MAX_ELEMENTS
 from .graded import prepare
 from .pslg import Layout, fixed_point, triangulate
 from .skfem_mesh import Recipe, to_meshtri
@@ -83,6 +84,12 @@ def uniform_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (
     if not (np.isfinite(h) and 0.0 < h <= 0.5 * span):
         raise ValueError(f"h: must be in (0, {0.5 * span:.6g}] (half the domain's shorter "
                          f"side), got {h!r}")
+    d_area = 0.5 * abs(float(np.sum(D[0] * np.roll(D[1], -1) - np.roll(D[0], -1) * D[1])))
+    n_est = d_area / (np.sqrt(3.0) / 4.0 * h * h)
+    if n_est > MAX_ELEMENTS:
+        raise ValueError(f"h = {h:.3g}: would make about {n_est:.2g} triangles; must be >= "
+                         f"{np.sqrt(d_area / MAX_ELEMENTS / (np.sqrt(3.0) / 4.0)):.3g} "
+                         f"(at most {MAX_ELEMENTS:.0e} triangles)")
     wall, wall_edge = split_walls(D, h)
     layout = Layout(domain=D, edge_names=names, particles=outlines, wall=wall,
                     wall_edge=wall_edge, free=np.zeros((2, 0)))
