@@ -112,6 +112,9 @@ class MonolithicCoupling(RigidParticles):
                                shape=(N, self.nz))
         self.ET = self.E.T.tocsr()
         self.rigid_slice = slice(u_free.size, self.nu_z)
+        # rigid-body velocities couple to every element at their particle: nested dissection
+        # puts them in the separator where those elements part
+        self._ordering = sp_.ordering(self.E)
 
     def rigid(self, z: np.ndarray) -> np.ndarray:
         """Rigid DOFs ``(3, K)`` (``Vx, Vy, omega``) of an unknown vector ``z``."""
@@ -156,7 +159,7 @@ class MonolithicCoupling(RigidParticles):
         sp_ = self.space
         pf = self.E[sp_.nu:, self.nu_z:].nonzero()[0]
         Mp = sp_.Mp[np.sort(pf)][:, np.sort(pf)]
-        self.solver.factorize(Jz, self.nu_z, Mp=Mp)
+        self.solver.factorize(Jz, self.nu_z, Mp=Mp, ordering=self._ordering)
         self._A_uu = A_uu
         self._a0 = a0
         self.timings["assembly"] += t1 - t0

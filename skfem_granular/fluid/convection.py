@@ -130,6 +130,25 @@ class ConvectionKernel:
             ``True``: full Newton Jacobian ``N(u) . + N(.) u``; ``False``:
             Picard (Oseen) matrix ``N(u)``.
         """
+        data = self.jacobian_data(u, newton)
+        return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.nu, self.nu))
+
+    @property
+    def pattern(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(indices, indptr)`` of the CSR pattern shared by every :meth:`jacobian`."""
+        return self._indices, self._indptr
+
+    def jacobian_data(self, u: np.ndarray, newton: bool = True) -> np.ndarray:
+        """Values of :meth:`jacobian` on its fixed pattern (:attr:`pattern`).
+
+        Parameters
+        ----------
+        u : ndarray
+            Velocity DOFs (the wind).
+        newton : bool
+            ``True``: full Newton Jacobian ``N(u) . + N(.) u``; ``False``:
+            Picard (Oseen) matrix ``N(u)``.
+        """
         W, dphix, dphiy, slot = self._jacobian_tables()
         F = self._element_fields(u)  # (nel, 3 nq, 2)
         nq, wphi = self._nq, self._wphi
@@ -148,5 +167,4 @@ class ConvectionKernel:
             local = np.zeros((nel, nloc, nloc, 2, 2))
             local[..., 0, 0] = T1
             local[..., 1, 1] = T1
-        data = np.bincount(slot, weights=local.ravel(), minlength=self._indices.size)
-        return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.nu, self.nu))
+        return np.bincount(slot, weights=local.ravel(), minlength=self._indices.size)

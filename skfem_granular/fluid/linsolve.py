@@ -62,7 +62,7 @@ class SaddlePointSolver:
         self.stats = SolverStats(self.name)
         self._scale = None
 
-    def _scaled(self, A: sp.spmatrix, nu: int) -> sp.csc_matrix:
+    def _scaled(self, A: sp.spmatrix, nu: int) -> sp.csr_matrix:
         A = sp.csr_matrix(A)
         if not A.has_canonical_format:
             A = A.copy()
@@ -83,7 +83,7 @@ class SaddlePointSolver:
         else:
             kept = np.concatenate(([0], np.cumsum(keep)))
             DAD = sp.csr_matrix((data[keep], A.indices[keep], kept[A.indptr]), shape=A.shape)
-        return DAD.tocsc()
+        return DAD
 
     def factorize(self, A: sp.spmatrix, nu: int, **blocks) -> SaddlePointSolver:
         """Prepare to solve with ``A`` (velocity unknowns first, ``nu`` of them)."""
@@ -146,8 +146,13 @@ class SuperLUSolver(SaddlePointSolver):
         self.refine_rtol = refine_rtol
         self.max_refine = max_refine
 
-    def _factorize(self, A, **blocks):
+    def _factorize(self, A, ordering=None, **blocks):
         self._A = A.tocsr()
+        if ordering is not None:
+            ordering = np.asarray(ordering)
+            if ordering.shape != (A.shape[0],):
+                raise ValueError(f"ordering: length {ordering.size}, expected the matrix size "
+                                 f"{A.shape[0]}")
         self._static = self.delta > 0 and A.shape[0] > self.nu
         self._refined_ok = False  # set by the first refined solve that converges
         if self._static:
@@ -160,8 +165,11 @@ class SuperLUSolver(SaddlePointSolver):
             else:
                 Mp = sp.csr_matrix(Mp) * self._scale[-1] ** 2
                 reg = sp.block_diag([sp.csr_matrix((nu, nu)), Mp * (self.delta * vmax / abs(Mp).max())])
-            self._lu = spla.splu((A - reg).tocsc(), permc_spec="MMD_AT_PLUS_A",
-                                 diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+            if ordering is None:
+                self._lu = spla.splu((A - reg).tocsc(), permc_spec="MMD_AT_PLUS_A",
+                                     diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+            else:
+                self._lu = _PermutedLU(A - reg, ordering)
         else:
             self._pivoted(A)
 
@@ -208,6 +216,42 @@ class SuperLUSolver(SaddlePointSolver):
             return x
         self._pivoted(self._A)
         return self._lu.solve(b)
+
+
+class _PermutedLU:
+    """SuperLU factors of ``P A P^T`` for a given ordering, applied to ``A``.
+
+    SuperLU factorises the symmetrically permuted matrix in its natural order
+    (it still postorders the elimination tree) with diagonal pivots, so the
+    caller's ordering is kept. It factorises the transpose, whose CSC arrays
+    are the CSR arrays of ``P A P^T`` (a row gather, no format conversion),
+    and solves with ``trans="T"``.
+    """
+
+    def __init__(self, A: sp.csr_matrix, perm: np.ndarray):
+        self.perm = perm
+        rows = sp.csr_matrix(A)[perm]  # row gather: cheap for CSR
+        inv = np.empty_like(perm)
+        inv[perm] = np.arange(perm.size)
+        CT = sp.csc_matrix((rows.data, inv[rows.indices], rows.indptr), shape=A.shape[::-1])
+        CT.sort_indices()
+        self.lu = spla.splu(CT, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                            options=dict(SymmetricMode=True))
+
+    @property
+    def L(self) -> sp.csc_matrix:
+        """Lower factor of the permuted matrix."""
+        return self.lu.L
+
+    @property
+    def U(self) -> sp.csc_matrix:
+        """Upper factor of the permuted matrix."""
+        return self.lu.U
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        x = np.empty_like(b, dtype=float)
+        x[self.perm] = self.lu.solve(np.ascontiguousarray(b[self.perm], dtype=float), trans="T")
+        return x
 
 
 class PardisoSolver(SaddlePointSolver):

@@ -139,31 +139,18 @@ class NavierStokesOperator:
         The same matrix as scipy's sparse sum (values ``a + n``, exact zeros dropped),
         without merging the two patterns on every call.
         """
-        kern = self.space.convection
-        if self._conv_positions is None or self._conv_positions[0] is not A:
-            pos = None
-            if A.has_canonical_format and A.shape == N.shape:
-                n = A.shape[0]
-                rows_n = np.repeat(np.arange(n, dtype=np.int64), np.diff(kern._indptr))
-                keys_n = rows_n * n + kern._indices
-                rows_a = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
-                keys_a = rows_a * n + A.indices
-                pos = np.searchsorted(keys_n, keys_a)
-                pos = np.minimum(pos, keys_n.size - 1)
-                if not np.array_equal(keys_n[pos], keys_a):
-                    pos = None
-            self._conv_positions = (A, pos)
-        pos = self._conv_positions[1]
-        if pos is None or N.indptr is not kern._indptr:
+        indices, indptr = self.space.convection.pattern
+        pos = self._velocity_positions(A)
+        if pos is None or N.indptr is not indptr:
             return A + N
         data = N.data.copy()
         data[pos] = A.data + data[pos]
         keep = data != 0
         if keep.all():
-            return sp.csr_matrix((data, kern._indices, kern._indptr), shape=N.shape)
+            return sp.csr_matrix((data, indices, indptr), shape=N.shape)
         kept = np.concatenate(([0], np.cumsum(keep)))
-        indptr = kept[kern._indptr].astype(kern._indptr.dtype)
-        return sp.csr_matrix((data[keep], kern._indices[keep], indptr), shape=N.shape)
+        return sp.csr_matrix((data[keep], indices[keep], kept[indptr].astype(indptr.dtype)),
+                             shape=N.shape)
 
     def jacobian(self, x: np.ndarray, c_mass: float = 0.0, newton: bool = True) -> sp.csr_matrix:
         """Full Jacobian of :meth:`residual` at ``x`` (Picard matrix if ``newton=False``)."""
@@ -174,6 +161,69 @@ class NavierStokesOperator:
             N.data *= self.fluid.density
             A = self._plus_convection(A, N)
         return self.matrix(A)
+
+    def reduced_jacobian(self, x: np.ndarray, c_mass: float = 0.0,
+                         newton: bool = True) -> sp.csr_matrix:
+        """``reduced(jacobian(x, c_mass, newton))`` on a pattern fixed per mesh.
+
+        The free-DOF matrix is gathered straight from the values of the velocity block
+        and of ``B``, ``B^T`` through an index map built once, without building and
+        slicing the full matrix (entries that happen to vanish are kept as zeros).
+        """
+        if not self.convection:
+            return self.reduced(self.jacobian(x, c_mass, newton))
+        kern = self.space.convection
+        data = kern.jacobian_data(x[: self.space.nu], newton=newton)
+        data *= self.fluid.density
+        A = self.velocity_block(c_mass)
+        pos = self._velocity_positions(A)
+        if pos is None:  # A not within the convection pattern: the general path
+            return self.reduced(self.jacobian(x, c_mass, newton))
+        data[pos] += A.data
+        indices, indptr, gather = self._reduced_pattern
+        values = np.concatenate([data, self._Bt.data, self._B_lower.data])[gather]
+        n = self.free.size
+        return sp.csr_matrix((values, indices, indptr), shape=(n, n))
+
+    def _velocity_positions(self, A: sp.csr_matrix) -> np.ndarray | None:
+        """Positions of ``A``'s entries in the convection pattern (cached per ``A``)."""
+        kern = self.space.convection
+        if self._conv_positions is None or self._conv_positions[0] is not A:
+            pos = None
+            if A.has_canonical_format and A.shape == (self.space.nu, self.space.nu):
+                indices, indptr = kern.pattern
+                n = A.shape[0]
+                rows_n = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr))
+                keys_n = rows_n * n + indices
+                rows_a = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
+                keys_a = rows_a * n + A.indices
+                pos = np.searchsorted(keys_n, keys_a)
+                pos = np.minimum(pos, keys_n.size - 1)
+                if not np.array_equal(keys_n[pos], keys_a):
+                    pos = None
+            self._conv_positions = (A, pos)
+        return self._conv_positions[1]
+
+    @cached_property
+    def _reduced_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pattern of the reduced Newton matrix and where its values come from.
+
+        The full matrix is built once with entry numbers as values; restricting it
+        to the free DOFs carries them along.
+        """
+        indices, indptr = self.space.convection.pattern
+        nuu, nbt, nb = indices.size, self._Bt.nnz, self._B_lower.nnz
+        ids = np.arange(1, nuu + nbt + nb + 1, dtype=float)
+        nu = self.space.nu
+        Kp = sp.csr_matrix((ids[:nuu], indices, indptr), shape=(nu, nu))
+        Bt = sp.csr_matrix((ids[nuu:nuu + nbt], self._Bt.indices, self._Bt.indptr),
+                           shape=self._Bt.shape)
+        Bl = sp.csr_matrix((ids[nuu + nbt:], self._B_lower.indices, self._B_lower.indptr),
+                           shape=self._B_lower.shape)
+        full = sp.vstack([sp.hstack([Kp, Bt], format="csr"), Bl], format="csr")
+        R = self.reduced(full)
+        R.sort_indices()
+        return R.indices.copy(), R.indptr.copy(), R.data.astype(np.int64) - 1
 
     # residuals ----------------------------------------------------------------
     def residual(self, x: np.ndarray, c_mass: float = 0.0, rhs_u: np.ndarray | None = None,
@@ -211,9 +261,15 @@ class NavierStokesOperator:
         return np.asarray(self.space.Mp.sum(axis=0)).ravel()
 
     def solver_blocks(self, c_mass: float = 0.0) -> dict:
-        """Extra blocks for the Krylov preconditioner, restricted to free DOFs."""
+        """Extra blocks for the solvers (preconditioner blocks, ordering), restricted to free DOFs."""
         sp_ = self.space
         pfree = self.free[self.nu_free:] - sp_.nu
         Mp = sp_.Mp[pfree][:, pfree]
         Lp = sp_.Lp[pfree][:, pfree]
-        return dict(Mp=Mp, Lp=Lp, eta=self.fluid.viscosity, a0rho=c_mass * self.fluid.density)
+        return dict(Mp=Mp, Lp=Lp, eta=self.fluid.viscosity, a0rho=c_mass * self.fluid.density,
+                    ordering=self.ordering)
+
+    @cached_property
+    def ordering(self) -> np.ndarray:
+        """Fill-reducing ordering of the free DOFs, computed once for the direct solvers."""
+        return self.space.ordering(self.free)

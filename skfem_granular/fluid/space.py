@@ -16,6 +16,7 @@ from skfem import Basis, ElementTriP1, ElementTriP2, ElementVector, FacetBasis, 
 
 from . import forms
 from .convection import ConvectionKernel
+from .ordering import element_incidence, fill_reducing_ordering
 
 #: Quadrature order shared by all bases: the convection integrand on affine
 #: P2 has degree 5, the mass matrix degree 4.
@@ -52,6 +53,37 @@ class TaylorHood:
         self.nu = self.ub.N
         self.np_ = self.pb.N
         self.N = self.nu + self.np_
+
+    # unknowns per element, for fill-reducing orderings -------------------
+    @cached_property
+    def incidence(self) -> sp.csr_matrix:
+        """Element-to-unknown incidence ``(nelements, N)`` of ``x = [u, p]``."""
+        return element_incidence([self.ub.element_dofs, self.pb.element_dofs + self.nu], self.N)
+
+    def ordering(self, columns: sp.spmatrix | np.ndarray, method: str = "minimum_degree"
+                 ) -> np.ndarray:
+        """Fill-reducing ordering of a system whose unknowns derive from ``x``.
+
+        Parameters
+        ----------
+        columns : ndarray or sparse matrix
+            Indices of the unknowns of ``x`` kept in the system (free DOFs), or
+            a prolongation ``(N, n)`` from the system's unknowns to ``x``
+            (eliminated and rigid-body unknowns).
+        method : str
+            One of :data:`.ordering.ORDERINGS`.
+
+        Returns
+        -------
+        ndarray
+            Permutation of the system's unknowns (:func:`.ordering.fill_reducing_ordering`).
+        """
+        if sp.issparse(columns):
+            inc = self.incidence.astype(float) @ abs(sp.csr_matrix(columns))
+        else:
+            inc = self.incidence[:, np.asarray(columns)]
+        centroids = self.mesh.p[:, self.mesh.t].mean(axis=1)
+        return fill_reducing_ordering(inc, centroids, method)
 
     # constant blocks, assembled on first use ------------------------------
     @cached_property

@@ -1,0 +1,116 @@
+"""Fill-reducing orderings from the mesh: permutations, groups, fill bounds, same solutions.
+
+The fill bounds are quality bounds measured on the paper's box (benchmarks/fluid_step.py,
+77k unknowns: node minimum degree 1.02x, nested dissection 1.31x the fill of SuperLU's own
+MMD_AT_PLUS_A); here on a 6k-unknown annulus, where they are 1.0x and 1.2x.
+"""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from helpers import annulus
+
+import skfem_granular as sg
+from skfem_granular.fluid.boundary import DirichletData
+from skfem_granular.fluid.linsolve import SuperLUSolver
+from skfem_granular.fluid.operator import NavierStokesOperator
+from skfem_granular.fluid.ordering import (
+    fill_reducing_ordering,
+    nested_dissection,
+    unknown_groups,
+)
+
+A0 = 1.5e5
+
+
+@pytest.fixture(scope="module")
+def system():
+    """A BDF2 Newton matrix of water in a 2 mm annulus, inner wall moving."""
+    space = sg.TaylorHood(annulus(1e-3, 2e-3, 32, 64, (6e-5) ** 2))
+    bc = {"inner": (0.0, 1e-2), "outer": (0.0, 0.0)}
+    op = NavierStokesOperator(space, sg.Fluid(1000.0, 1e-3), DirichletData(space, bc),
+                              convection=True)
+    x = op.apply_dirichlet(np.zeros(space.N))
+    x[: space.nu] += 1e-3 * np.sin(space.velocity_doflocs[0] * 3e3)
+    x = op.apply_dirichlet(x)
+    J = op.reduced_jacobian(x, c_mass=A0)
+    b = -op.residual(x, c_mass=A0)[op.free]
+    return space, op, x, J, b
+
+
+@pytest.mark.parametrize("method", ["minimum_degree", "nested_dissection"])
+def test_ordering_is_a_permutation_of_the_free_dofs(system, method):
+    space, op, *_ = system
+    perm = space.ordering(op.free, method)
+    assert np.array_equal(np.sort(perm), np.arange(op.free.size))
+
+
+def test_groups_are_the_sets_of_unknowns_with_equal_elements():
+    """Checked by brute force: ux, uy, p at a vertex share a group, as do ux, uy at an edge
+    midpoint (and whole nodes in only one element, at corners, merge)."""
+    space = sg.TaylorHood(annulus(1.0, 2.0, 8, 16, 0.05))
+    inc = sp.csc_matrix(space.incidence)
+    groups = unknown_groups(inc)
+    sets = [tuple(inc.indices[inc.indptr[j]:inc.indptr[j + 1]]) for j in range(inc.shape[1])]
+    by_set = {}
+    for j, key in enumerate(sets):
+        by_set.setdefault(key, []).append(j)
+    assert groups.max() + 1 == len(by_set)
+    for members in by_set.values():
+        assert np.unique(groups[members]).size == 1
+    sizes = np.bincount(groups)
+    assert np.count_nonzero(sizes == 3) >= space.mesh.nvertices - 8
+
+
+@pytest.mark.parametrize("method, bound", [("minimum_degree", 1.1), ("nested_dissection", 1.5)])
+def test_solution_and_fill_against_superlu_own_ordering(system, method, bound):
+    space, op, _, J, b = system
+    blocks = op.solver_blocks(A0)
+    own = SuperLUSolver().factorize(J, op.nu_free, **dict(blocks, ordering=None))
+    mesh_ord = SuperLUSolver().factorize(
+        J, op.nu_free, **dict(blocks, ordering=space.ordering(op.free, method)))
+    x_own, x_mesh = own.solve(b), mesh_ord.solve(b)
+    assert np.linalg.norm(J @ x_mesh - b) <= 1e-12 * np.linalg.norm(b)
+    np.testing.assert_allclose(x_mesh, x_own, rtol=0, atol=1e-10 * np.abs(x_own).max())
+    fill = mesh_ord._lu.L.nnz + mesh_ord._lu.U.nnz
+    fill_own = own._lu.L.nnz + own._lu.U.nnz
+    assert fill <= bound * fill_own
+
+
+def test_inexact_solve_with_ordering_is_close(system):
+    """The chord loops' unrefined solve: error about the regularisation (1e-8 relative)."""
+    _, op, _, J, b = system
+    s = SuperLUSolver().factorize(J, op.nu_free, **op.solver_blocks(A0))
+    x = s.solve(b)
+    y = s._solve_inexact(b)
+    assert np.linalg.norm(y - x) <= 1e-5 * np.linalg.norm(x)
+
+
+def test_nested_dissection_separates_halves():
+    """A 1-D chain of 8 elements, unknowns at the 9 joints: the middle joint comes last."""
+    nel = 8
+    rows = np.repeat(np.arange(nel), 2)
+    cols = np.stack([np.arange(nel), np.arange(1, nel + 1)], axis=1).ravel()
+    inc = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(nel, nel + 1))
+    centroids = np.array([np.arange(nel) + 0.5, np.zeros(nel)])
+    perm = nested_dissection(inc, centroids, leaf=1)
+    assert perm[-1] == 4  # the root separator
+    assert perm[-2] == 6  # the right half's separator, after the right half
+    assert perm[3] == 2  # the left half's separator, after joints 0, 1, 3
+    assert set(perm[:3]) == {0, 1, 3}
+
+
+def test_unknown_in_no_element_comes_last():
+    inc = sp.csr_matrix(np.array([[1, 1, 0, 0], [0, 1, 1, 0]]))
+    perm = nested_dissection(inc, np.array([[0.0, 1.0], [0.0, 0.0]]), leaf=1)
+    assert perm[-1] == 3
+    perm = fill_reducing_ordering(inc, np.array([[0.0, 1.0], [0.0, 0.0]]))
+    assert np.array_equal(np.sort(perm), np.arange(4))
+
+
+def test_bad_ordering_input_is_refused(system):
+    space, op, _, J, _ = system
+    with pytest.raises(ValueError, match=r"ordering = 'amd': must be one of"):
+        space.ordering(op.free, "amd")
+    with pytest.raises(ValueError, match=r"ordering: length 3, expected the matrix size"):
+        SuperLUSolver().factorize(J, op.nu_free, ordering=np.arange(3))
