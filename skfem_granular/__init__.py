@@ -6,6 +6,7 @@ The fluid half (Taylor-Hood P2/P1 on scikit-fem) lives in
 :mod:`meshing`.
 """
 
+from .dem import Polygon
 from .fluid import (
     ConvergenceError,
     Flow,
@@ -15,7 +16,6 @@ from .fluid import (
     TaylorHood,
     solve_steady,
 )
-from .dem import Polygon
 from .fluid.unsteady import BDF2Integrator, evolve
 from .scene import Effects, MeshSpec, ParticleSpec, Scene, TimeSpec
 from .simulation import Simulation, SimulationResult

@@ -164,7 +164,8 @@ class SuperLUSolver(SaddlePointSolver):
                 reg = sp.diags(np.r_[np.zeros(nu), np.full(n - nu, self.delta * vmax)])
             else:
                 Mp = sp.csr_matrix(Mp) * self._scale[-1] ** 2
-                reg = sp.block_diag([sp.csr_matrix((nu, nu)), Mp * (self.delta * vmax / abs(Mp).max())])
+                reg = sp.block_diag([sp.csr_matrix((nu, nu)),
+                                     Mp * (self.delta * vmax / abs(Mp).max())])
             if ordering is None:
                 self._lu = spla.splu((A - reg).tocsc(), permc_spec="MMD_AT_PLUS_A",
                                      diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))

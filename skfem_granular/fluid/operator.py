@@ -50,7 +50,8 @@ class NavierStokesOperator:
     def __init__(self, space: TaylorHood, fluid: Fluid, dirichlet: DirichletData,
                  convection: bool = False, viscous: str = "auto", body_force=None):
         if not isinstance(fluid, Fluid):
-            raise ValueError(f"fluid: a skfem_granular.Fluid is required, got {type(fluid).__name__}")
+            raise ValueError("fluid: a skfem_granular.Fluid is required, "
+                             f"got {type(fluid).__name__}")
         self.space = space
         self.fluid = fluid
         self.dirichlet = dirichlet
@@ -86,7 +87,8 @@ class NavierStokesOperator:
         if callable(body_force):
             x = sp_.ub.global_coordinates().value
             fx, fy = body_force(x[0], x[1])
-            val = np.array([np.broadcast_to(fx, x[0].shape), np.broadcast_to(fy, x[0].shape)], float)
+            val = np.array([np.broadcast_to(fx, x[0].shape), np.broadcast_to(fy, x[0].shape)],
+                           dtype=float)
         else:
             c = evaluate(body_force, np.zeros(1), np.zeros(1), None, "body_force")[:, 0]
             val = np.broadcast_to(c[:, None, None], (2,) + sp_.ub.dx.shape)
@@ -261,7 +263,7 @@ class NavierStokesOperator:
         return np.asarray(self.space.Mp.sum(axis=0)).ravel()
 
     def solver_blocks(self, c_mass: float = 0.0) -> dict:
-        """Extra blocks for the solvers (preconditioner blocks, ordering), restricted to free DOFs."""
+        """Extra blocks for the solvers (preconditioners, ordering), on the free DOFs."""
         sp_ = self.space
         pfree = self.free[self.nu_free:] - sp_.nu
         Mp = sp_.Mp[pfree][:, pfree]

@@ -210,7 +210,7 @@ class BDF2Integrator:
         used_gmres = False
         prev_norm = None
         self.timings["assembly"] += time.perf_counter() - t0
-        for it in range(1, self.max_iterations + 1):
+        for it in range(1, self.max_iterations + 1):  # noqa: B007 (returned)
             t0 = time.perf_counter()
             r = op.residual(x, rhs_u=rhs_u, A_uu=A_uu)
             t1 = time.perf_counter()
