@@ -25,6 +25,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .factor_plan import plan_for
+
 #: Above this many unknowns ``"auto"`` switches from SuperLU to Krylov.
 AUTO_KRYLOV_SIZE = 250_000
 
@@ -146,6 +148,31 @@ class SuperLUSolver(SaddlePointSolver):
         self.refine_rtol = refine_rtol
         self.max_refine = max_refine
 
+    def factorize(self, A: sp.spmatrix, nu: int, **blocks) -> SuperLUSolver:
+        """Prepare to solve with ``A`` (velocity unknowns first, ``nu`` of them).
+
+        With an ``ordering`` block and a pattern seen before, scaling,
+        regularisation and permutation are gathers through a cached
+        :class:`~skfem_granular.fluid.factor_plan.FactorPlan`.
+        """
+        perm = blocks.get("ordering")
+        if (perm is not None and self.delta > 0 and sp.issparse(A) and A.format == "csr"
+                and A.shape[0] > nu and np.shape(perm) == (A.shape[0],)):
+            t0 = time.perf_counter()
+            plan = plan_for(A, nu, perm, blocks.get("Mp"))
+            if plan is not None:
+                self.nu = nu
+                s, scaled, vmax = plan.scale(A.data)
+                self._scale = np.ones(A.shape[0])
+                self._scale[nu:] = s
+                self._A = sp.csr_matrix((scaled, A.indices, A.indptr), shape=A.shape)
+                self._static, self._refined_ok = True, False
+                self._lu = _PermutedLU(plan.permuted_transpose(scaled, self.delta * vmax), perm)
+                self.stats.factorizations += 1
+                self.stats.time_factor += time.perf_counter() - t0
+                return self
+        return super().factorize(A, nu, **blocks)
+
     def _factorize(self, A, ordering=None, **blocks):
         self._A = A.tocsr()
         if ordering is not None:
@@ -170,7 +197,7 @@ class SuperLUSolver(SaddlePointSolver):
                 self._lu = spla.splu((A - reg).tocsc(), permc_spec="MMD_AT_PLUS_A",
                                      diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
             else:
-                self._lu = _PermutedLU(A - reg, ordering)
+                self._lu = _PermutedLU.of(A - reg, ordering)
         else:
             self._pivoted(A)
 
@@ -229,15 +256,20 @@ class _PermutedLU:
     and solves with ``trans="T"``.
     """
 
-    def __init__(self, A: sp.csr_matrix, perm: np.ndarray):
+    def __init__(self, CT: sp.csc_matrix, perm: np.ndarray):
         self.perm = perm
+        self.lu = spla.splu(CT, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                            options=dict(SymmetricMode=True))
+
+    @classmethod
+    def of(cls, A: sp.csr_matrix, perm: np.ndarray) -> _PermutedLU:
+        """Factors of any ``A`` (CSR) in the order ``perm``."""
         rows = sp.csr_matrix(A)[perm]  # row gather: cheap for CSR
         inv = np.empty_like(perm)
         inv[perm] = np.arange(perm.size)
         CT = sp.csc_matrix((rows.data, inv[rows.indices], rows.indptr), shape=A.shape[::-1])
         CT.sort_indices()
-        self.lu = spla.splu(CT, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                            options=dict(SymmetricMode=True))
+        return cls(CT, perm)
 
     @property
     def L(self) -> sp.csc_matrix:
