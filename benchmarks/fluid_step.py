@@ -71,10 +71,10 @@ def disk(n: int) -> np.ndarray:
 #: Krylov solver, measured at 16 s setup + 45 s per solve there: SuperLU is used instead.
 CASES = {
     "1k": ("graded_mesh(DOMAIN, [regular 60-gon]), default sigma (Eq. 4)",
-           lambda: meshing.graded_mesh(DOMAIN, [disk(60)]), 7, 100, 3, "auto"),
+           lambda: meshing.graded_mesh(DOMAIN, [disk(60)]), 11, 100, 3, "auto"),
     "9k": ("uniform_mesh(DOMAIN, [regular 24-gon], h=delta_l=0.067 mm)",
            lambda: meshing.uniform_mesh(DOMAIN, [disk(24)], h=0.067e-3, delta_l=0.067e-3),
-           3, 100, 1, "auto"),
+           7, 100, 1, "auto"),
     "40k": ("uniform_mesh(DOMAIN, [regular 24-gon], h=delta_l=0.0315 mm)",
             lambda: meshing.uniform_mesh(DOMAIN, [disk(24)], h=0.0315e-3, delta_l=0.0315e-3),
             1, 3, 1, "superlu"),

@@ -35,7 +35,8 @@ def save(sim, state, k: int, hist, series) -> Path:
         "mesh_centers": getattr(sim, "mesh_centers", None),
         "mesh_angles": getattr(sim, "mesh_angles", None),
         "history": hist.rows,
-        "counters": {"remeshes": sim.remeshes, "retries": sim.retries},
+        "counters": {"remeshes": sim.remeshes, "retries": sim.retries,
+                     "rejections": sim.rejections},
         "frames": {name: s.frames for name, s in (series or {}).items() if s is not None},
     }
     blob = pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL)

@@ -128,14 +128,12 @@ def main(argv=None) -> int:
         if args.mesh:
             scene = scene.with_mesh(args.mesh)
         if args.t_end is not None or args.dt is not None:
-            from .scene import TimeSpec
-
             scene = replace(
                 scene,
-                time=TimeSpec(
+                time=replace(
+                    scene.time,
                     t_end=scene.time.t_end if args.t_end is None else args.t_end,
                     dt=scene.time.dt if args.dt is None else args.dt,
-                    dem_dt=scene.time.dem_dt,
                 ),
             )
         out = args.out or scene.output_dir or f"out/{scene.name}"

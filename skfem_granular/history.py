@@ -7,6 +7,9 @@ import numpy as np
 from .io import atomic_write
 
 #: Per-particle columns: name -> how to read it from a record.
+#: Columns of one value per step.
+STEP_COLUMNS = ("t", "dt", "iterations", "fluid_energy", "error")
+
 PARTICLE_COLUMNS = (
     "x",
     "y",
@@ -26,7 +29,8 @@ PARTICLE_COLUMNS = (
 class History:
     """Rows appended once per step; columns as arrays.
 
-    Attributes: ``t``, ``dt``, ``iterations``, ``fluid_energy`` (N,) and
+    Attributes: ``t``, ``dt``, ``iterations``, ``fluid_energy``, ``error``
+    (the local error estimate of adaptive runs, NaN otherwise) (N,) and
     for each particle column a ``(N, K)`` array: positions ``x``, ``y``,
     ``angle``, velocities ``vx``, ``vy``, ``omega``, accelerations ``ax``,
     ``ay``, fluid forces ``Fx``, ``Fy``, ``torque`` and contact counts.
@@ -37,12 +41,13 @@ class History:
         self.rows = []
 
     def append(self, t: float, dt: float, iterations: int, fluid_energy: float = float("nan"),
-               **particle):
+               error: float = float("nan"), **particle):
         """Add one step; ``particle`` holds ``(K,)`` arrays named as :data:`PARTICLE_COLUMNS`.
 
         ``fluid_energy`` is the fluid's kinetic energy ``rho u.M u / 2`` (J per unit depth).
         """
-        row = {"t": t, "dt": dt, "iterations": iterations, "fluid_energy": float(fluid_energy)}
+        row = {"t": t, "dt": dt, "iterations": iterations, "fluid_energy": float(fluid_energy),
+               "error": float(error)}
         for c in PARTICLE_COLUMNS:
             row[c] = np.array(particle.get(c, np.zeros(self.K)), dtype=float).reshape(self.K)
         self.rows.append(row)
@@ -51,20 +56,20 @@ class History:
         return len(self.rows)
 
     def __getattr__(self, name):
-        if name in ("t", "dt", "iterations", "fluid_energy"):
-            return np.array([r[name] for r in self.rows])
+        if name in STEP_COLUMNS:
+            return np.array([r.get(name, np.nan) for r in self.rows])
         if name in PARTICLE_COLUMNS:
             return np.array([r[name] for r in self.rows]).reshape(len(self.rows), self.K)
         raise AttributeError(name)
 
     def to_csv(self, path) -> None:
         """Write the table (one column per quantity and particle) atomically."""
-        head = ["t", "dt", "iterations", "fluid_energy"] + [
+        head = list(STEP_COLUMNS) + [
             f"{c}_{k}" for k in range(self.K) for c in PARTICLE_COLUMNS
         ]
         data = (
             np.column_stack(
-                [self.t, self.dt, self.iterations, self.fluid_energy]
+                [getattr(self, c) for c in STEP_COLUMNS]
                 + [getattr(self, c)[:, k] for k in range(self.K) for c in PARTICLE_COLUMNS]
             )
             if self.rows

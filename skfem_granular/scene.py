@@ -141,11 +141,32 @@ class MeshSpec:
 
 @dataclass(frozen=True)
 class TimeSpec:
-    """Time span and steps (seconds)."""
+    """Time span and steps (seconds).
+
+    Attributes
+    ----------
+    t_end : float
+        End time, > 0.
+    dt : float
+        The step (fixed steps), or the first step and the largest (adaptive).
+    dem_dt : float or None
+        DEM subcycle step (None: from the contact stiffness).
+    adaptive : bool
+        Choose the steps of a coupled run from the BDF2 local error estimate
+        (accept/reject), at most ``dt``.
+    tol : float
+        Local error tolerance relative to the velocity scale, in (0, 1].
+    dt_min : float
+        Smallest step of an adaptive run; a step that would need less stops
+        the run with a clear error.
+    """
 
     t_end: float = 1e-3
     dt: float = 1e-5
     dem_dt: float | None = None
+    adaptive: bool = False
+    tol: float = 1e-3
+    dt_min: float = 1e-12
 
     def __post_init__(self):
         object.__setattr__(self, "t_end", _num("time", "t_end", self.t_end, lo=0))
@@ -155,6 +176,12 @@ class TimeSpec:
         )
         if self.dt > self.t_end:
             raise ValueError(f"time.dt = {self.dt:g}: must be <= time.t_end = {self.t_end:g}")
+        if not isinstance(self.adaptive, bool):
+            raise ValueError(f"time.adaptive = {self.adaptive!r}: must be true or false")
+        object.__setattr__(self, "tol", _num("time", "tol", self.tol, lo=0, hi=1))
+        object.__setattr__(self, "dt_min", _num("time", "dt_min", self.dt_min, lo=0))
+        if self.dt_min > self.dt:
+            raise ValueError(f"time.dt_min = {self.dt_min:g}: must be <= time.dt = {self.dt:g}")
 
 
 @dataclass(frozen=True)

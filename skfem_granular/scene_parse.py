@@ -158,7 +158,7 @@ def scene_kwargs(data: dict) -> dict:
         _check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h"})
         kw["mesh"] = MeshSpec(**data["mesh"])
     if "time" in data:
-        _check_keys("time", data["time"], {"t_end", "dt", "dem_dt"})
+        _check_keys("time", data["time"], {"t_end", "dt", "dem_dt", "adaptive", "tol", "dt_min"})
         kw["time"] = TimeSpec(**data["time"])
     if "effects" in data:
         _check_keys("effects", data["effects"], {"fluid", "gravity", "convection", "contacts",

@@ -106,6 +106,7 @@ class Simulation:
         self.remeshes = 0
         self.remesh_energy_ratios = []
         self.retries = 0
+        self.rejections = 0
         self.failure = None
         self.last_good = None
         self._resume = None
@@ -133,19 +134,18 @@ class Simulation:
             in ``directory``.
         """
         from . import checkpoint
-        from .scene import TimeSpec
 
         data = checkpoint.load(directory)
         scene = data["scene"]
         if t_end is not None:
-            scene = replace(scene, time=TimeSpec(t_end=t_end, dt=scene.time.dt,
-                                                 dem_dt=scene.time.dem_dt))
+            scene = replace(scene, time=replace(scene.time, t_end=t_end))
         sim = cls(scene, output_dir=directory, mesh=data["mesh"])
         sim.dem.restore_state(data["dem"])
         if not scene.dry:
             sim._new_coupling(centers=data["mesh_centers"], angles=data["mesh_angles"])
         sim.remeshes = data["counters"]["remeshes"]
         sim.retries = data["counters"]["retries"]
+        sim.rejections = data["counters"].get("rejections", 0)
         sim._resume = data
         return sim
 
@@ -278,13 +278,14 @@ class Simulation:
             series["flow"].write(t, flow.save)
         self.timings["output"] += time.perf_counter() - t0
 
-    def _record(self, hist, t, dt, its, acc, F, T, u=None):
+    def _record(self, hist, t, dt, its, acc, F, T, u=None, error=float("nan")):
         dem = self.dem
         hist.append(
             t,
             dt,
             its,
             fluid_energy=float("nan") if u is None else self.fluid_energy(u),
+            error=error,
             x=dem.positions[0],
             y=dem.positions[1],
             angle=dem.angles,
@@ -330,13 +331,15 @@ class Simulation:
         last = t >= self.scene.time.t_end - 1e-9 * self.scene.time.dt
         return last or (every > 0 and k % every == 0)
 
-    def _maybe_remesh(self, u_n, u_prev, p_n):
+    def _maybe_remesh(self, u_n, u_prev, p_n, *velocities):
+        """Remesh when a particle moved too far; returns ``u_n, u_prev, p_n`` and the
+        further ``velocities`` (time derivatives, None allowed) on the mesh in use."""
         from .motion import FieldTransfer, lag
 
         dem, sc = self.dem, self.scene
         moved = lag(self.mesh_centers, self.mesh_angles, dem.positions, dem.angles, self.radius)
         if not np.any(moved > sc.remesh_fraction * self.edge):
-            return u_n, u_prev, p_n
+            return (u_n, u_prev, p_n, *velocities)
         if not sc.effects.remeshing:
             raise RuntimeError(
                 f"particles moved {moved.max():.3g} m, more than "
@@ -354,13 +357,14 @@ class Simulation:
         e_old = 0.5 * self.scene.fluid.density * float(u_n @ (old.M @ u_n))
         u_n = tr.velocity(u_n)
         u_prev = None if u_prev is None else tr.velocity(u_prev)
+        velocities = [None if v is None else tr.velocity(v) for v in velocities]
         p_n = tr.pressure(p_n)
         # interpolation must not create kinetic energy out of nothing: record the ratio
         if e_old > 0:
             self.remesh_energy_ratios.append(self.fluid_energy(u_n) / e_old)
         self.timings["remeshing"] += time.perf_counter() - t0
         self.remeshes += 1
-        return u_n, u_prev, p_n
+        return (u_n, u_prev, p_n, *velocities)
 
     def fluid_energy(self, u) -> float:
         """Kinetic energy ``rho u.M u / 2`` of a velocity on the current mesh (J/m)."""
@@ -389,6 +393,9 @@ class Simulation:
             "dt": sc.time.dt,
             "remeshes": self.remeshes,
             "retries": self.retries,
+            "rejections": self.rejections,
+            "adaptive": sc.time.adaptive,
+            "dt_range": ([float(hist.dt.min()), float(hist.dt.max())] if len(hist) else None),
             "remesh_energy_ratio_max": max(self.remesh_energy_ratios, default=None),
             "failed": self.failure,
             "warnings": list(self.warnings),

@@ -93,3 +93,22 @@ def test_cli_resume(tmp_path, capsys):
     assert main(["run", "--resume", str(tmp_path / "nothing")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no checkpoint.pkl" in err[0]
+
+
+def test_resume_adaptive_run_bit_for_bit(tmp_path):
+    """Adaptive steps: the proposed next step and the derivative histories are in the
+    checkpoint, so the resumed run takes the same steps."""
+    scene = Scene.from_toml(SCENES / "single_particle.toml")
+    scene = replace(scene, time=replace(scene.time, adaptive=True, tol=1e-4))
+    full = Simulation(replace(scene, time=replace(scene.time, t_end=2e-4), checkpoint_every=8),
+                      output_dir=tmp_path / "full")
+    h_full = full.run(progress=False).history
+    part = Simulation(replace(scene, time=replace(scene.time, t_end=2e-4), checkpoint_every=8),
+                      output_dir=tmp_path / "part")
+    part.run(progress=False)  # writes checkpoints at 8, 16, ... steps; resume the last
+    resumed = Simulation.resume(tmp_path / "part", t_end=2e-4)
+    assert resumed.scene.time.adaptive and resumed.scene.time.tol == 1e-4
+    h_res = resumed.run(progress=False).history
+    _assert_same(h_full, h_res)
+    assert np.array_equal(h_full.error, h_res.error, equal_nan=True)
+    assert np.isfinite(h_full.error).any() and np.nanmax(h_full.error) <= 1e-4
