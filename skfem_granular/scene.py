@@ -15,7 +15,7 @@ TOML layout (see ``scenes/single_particle.toml``)::
     [grid]      nx, ny, sides, radius, spacing, origin, density, core_ratio, jitter
     [contacts]  E, mu, gamma
     [mesh]      kind = "graded" | "uniform" | "group", delta_l, sigma, h
-    [time]      t_end, dt, dem_dt
+    [time]      t_end, dt, dem_dt, adaptive, tol, dt_min
     [effects]   fluid, gravity, convection, contacts, rotation, remeshing
     [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction
     [output]    directory, vtu_every, checkpoint_every

@@ -74,6 +74,11 @@ def contacts_needed(scene, dem) -> bool:
     return False
 
 
+#: Coupled steps up to this many DEM stable steps resolve a contact: a hexagon hitting the
+#: floor at 3 cm/s in water kept 0.98 of its energy at 1.2 x (5 us), gained 16 % at 2.4 x.
+CONTACT_STEP_FACTOR = 1.25
+
+
 def scene_warnings(scene, dem, contacts_active: bool) -> list[str]:
     """Contradictions in a scene worth telling the user about."""
     out = []
@@ -99,4 +104,10 @@ def scene_warnings(scene, dem, contacts_active: bool) -> list[str]:
                    "expect the added-mass instability; use coupling.scheme = 'monolithic'")
     if scene.effects.contacts is False and dem.n > 1:
         out.append("contacts are off with several particles: nothing stops them overlapping")
+    limit = CONTACT_STEP_FACTOR * dem.dt_stable
+    if contacts_active and not scene.time.adaptive and scene.time.dt > limit:
+        out.append(f"time.dt = {scene.time.dt:g} s does not resolve a contact (steps up to "
+                   f"~{limit:.2g} s, {CONTACT_STEP_FACTOR:g} x the DEM's stable step, do): "
+                   "bounces in the fluid can gain energy (a grain hitting the floor came back "
+                   "1.37x richer at 5x that step); set time.adaptive = true or a smaller dt")
     return out

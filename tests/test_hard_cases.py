@@ -243,9 +243,19 @@ def test_fixed_steps_resolving_the_contact_do_not_create_energy(dt, bound):
     resolve the ~100 us contact. Measured ratios 1.37 (20 us), 1.16 (10 us), 0.98 (5 us)."""
     sim = Simulation(_hexagons([{"center": [2e-3, 0.5e-3], "velocity": [0.0, -0.05]}],
                                [0.0, 0.0, 4e-3, 3e-3], 3e-3, dt))
+    assert not any("does not resolve a contact" for w in sim.warnings)
     h = sim.run(progress=False).history
     _, _, ratio = _bounce(h, _energy(sim, h))
     assert ratio < bound
+
+
+def test_steps_too_long_for_contacts_are_warned_about():
+    launch = [{"center": [2e-3, 0.5e-3], "velocity": [0.0, -0.05]}]
+    box = [0.0, 0.0, 4e-3, 3e-3]
+    fixed = Simulation(_hexagons(launch, box, 3e-3, 2e-5))
+    assert any("time.dt = 2e-05 s does not resolve a contact" in w for w in fixed.warnings)
+    adaptive = Simulation(_hexagons(launch, box, 3e-3, 2e-5, adaptive=True))
+    assert not any("does not resolve a contact" in w for w in adaptive.warnings)
 
 
 def test_two_particles_collide_head_on_and_separate():
