@@ -149,6 +149,9 @@ class SuperLUSolver(SaddlePointSolver):
 
     name = "superlu"
 
+    #: Largest relative residual of an unrefined solve that the factors are trusted with.
+    INEXACT_RTOL = 1e-6
+
     def __init__(self, delta: float = 1e-11, refine_rtol: float = 1e-13, max_refine: int = 8):
         super().__init__()
         self.delta = delta
@@ -217,14 +220,22 @@ class SuperLUSolver(SaddlePointSolver):
         """One triangular solve with the regularised factors, no refinement.
 
         Its relative error is about the regularisation (~1e-9 with the default ``delta``),
-        far below the contraction of the chord iteration that calls it. The first solve
-        after each factorisation is a refined one, which also checks the factors (and
-        falls back to threshold pivoting if refinement stalls).
+        far below the contraction of the Newton or chord iteration that calls it. The
+        first solve after each factorisation checks the factors by its residual (one
+        matrix-vector product); above :attr:`INEXACT_RTOL` it is refined as in
+        :meth:`solve` (which falls back to threshold pivoting if refinement stalls).
         """
-        if not (self._static and self._refined_ok):
+        if not self._static:
             return self.solve(b)
         t0 = time.perf_counter()
-        x = self._scale * self._lu.solve(self._scale * b)
+        bs = self._scale * b
+        y = self._lu.solve(bs)
+        if not self._refined_ok:
+            bnorm = np.linalg.norm(bs)
+            if np.linalg.norm(bs - self._A @ y) > self.INEXACT_RTOL * bnorm:
+                return self.solve(b)
+            self._refined_ok = True
+        x = self._scale * y
         self.stats.solves += 1
         self.stats.time_solve += time.perf_counter() - t0
         return x
