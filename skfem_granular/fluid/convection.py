@@ -120,16 +120,7 @@ class ConvectionKernel:
         return self._test(self._advect(Fu, Fd) + self._advect(Fd, Fu))
 
     def jacobian(self, u: np.ndarray, newton: bool = True) -> sp.csr_matrix:
-        """Matrix of the convection term linearised at ``u``.
-
-        Parameters
-        ----------
-        u : ndarray
-            Velocity DOFs (the wind).
-        newton : bool
-            ``True``: full Newton Jacobian ``N(u) . + N(.) u``; ``False``:
-            Picard (Oseen) matrix ``N(u)``.
-        """
+        """Matrix of the convection term linearised at ``u`` (see :meth:`jacobian_data`)."""
         data = self.jacobian_data(u, newton)
         return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.nu, self.nu))
 
