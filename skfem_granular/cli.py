@@ -39,6 +39,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--out", help="output directory (default: the scene's output.directory)")
     run.add_argument("--t-end", type=float, help="override time.t_end (s)")
     run.add_argument("--dt", type=float, help="override time.dt (s)")
+    run.add_argument("--tol", type=float,
+                     help="adaptive steps with this local error tolerance (time.adaptive, "
+                          "time.tol); time.dt becomes the first and largest step")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     ren = sub.add_parser("render", help="picture (PNG) or animation (GIF/MP4) of a run's output")
     ren.add_argument("out", help="output directory of a run (with flow.pvd, particles.pvd)")
@@ -67,10 +70,13 @@ def format_summary(s: dict) -> str:
             f"mesh: {m['kind']}, {m['vertices']} vertices, {m['p2_nodes']} P2 nodes, "
             f"{m['triangles']} triangles, {m['dofs']} DOFs, min angle {m['min_angle']:.1f} deg"
         )
-    lines.append(
-        f"steps: {s['steps']} (dt = {s['dt']:.3g} s) to t = {s['t_end']:.6g} s, "
-        f"remeshes: {s['remeshes']}"
-    )
+    if s.get("adaptive") and s.get("dt_range"):
+        lo, hi = s["dt_range"]
+        steps = (f"steps: {s['steps']} adaptive (dt {lo:.3g} ... {hi:.3g} s, "
+                 f"{s['rejections']} rejected)")
+    else:
+        steps = f"steps: {s['steps']} (dt = {s['dt']:.3g} s)"
+    lines.append(f"{steps} to t = {s['t_end']:.6g} s, remeshes: {s['remeshes']}")
     if "final" in s:
         f = s["final"]
         if s["particles"] == 1:
@@ -117,8 +123,8 @@ def main(argv=None) -> int:
 
     try:
         if args.resume is not None:
-            if args.scene or args.mesh or args.dt is not None or args.out:
-                raise ValueError("--resume DIR takes no scene, --mesh, --dt or --out (the "
+            if args.scene or args.mesh or args.dt is not None or args.out or args.tol:
+                raise ValueError("--resume DIR takes no scene, --mesh, --dt, --tol or --out (the "
                                  "checkpoint holds them); only --t-end may change")
             sim = Simulation.resume(args.resume, t_end=args.t_end)
             return _finish_run(sim, args)
@@ -127,15 +133,15 @@ def main(argv=None) -> int:
         scene = Scene.from_toml(args.scene)
         if args.mesh:
             scene = scene.with_mesh(args.mesh)
-        if args.t_end is not None or args.dt is not None:
-            scene = replace(
-                scene,
-                time=replace(
-                    scene.time,
-                    t_end=scene.time.t_end if args.t_end is None else args.t_end,
-                    dt=scene.time.dt if args.dt is None else args.dt,
-                ),
-            )
+        if args.t_end is not None or args.dt is not None or args.tol is not None:
+            time_kw = {}
+            if args.t_end is not None:
+                time_kw["t_end"] = args.t_end
+            if args.dt is not None:
+                time_kw["dt"] = args.dt
+            if args.tol is not None:
+                time_kw.update(adaptive=True, tol=args.tol)
+            scene = replace(scene, time=replace(scene.time, **time_kw))
         out = args.out or scene.output_dir or f"out/{scene.name}"
         _check_out("--out" if args.out else "output.directory", out)
         sim = Simulation(scene, output_dir=out)

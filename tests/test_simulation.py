@@ -264,3 +264,24 @@ def test_run_that_cannot_converge_stops_with_history_written(paper, tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert "run stopped" in summary["failed"]
     assert (tmp_path / "history.csv").exists() and (tmp_path / "flow.pvd").exists()
+
+
+def test_cli_adaptive_run(tmp_path, capsys):
+    """--tol turns adaptive steps on; the summary line says how the steps went."""
+    code = main(["run", str(SCENES / "single_particle.toml"), "--out", str(tmp_path),
+                 "--t-end", "1e-4", "--tol", "1e-4", "--no-progress"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "adaptive (dt " in out and "rejected)" in out
+    import json
+
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["adaptive"] and s["dt_range"][0] <= s["dt_range"][1] <= 1e-5
+    h = np.genfromtxt(tmp_path / "history.csv", delimiter=",", names=True)
+    err = h["error"][np.isfinite(h["error"])]
+    assert err.size > 0 and err.max() <= 1e-4
+
+
+def test_cli_resume_refuses_tol(tmp_path, capsys):
+    assert main(["run", "--resume", str(tmp_path), "--tol", "1e-3"]) == 2
+    assert "--tol" in capsys.readouterr().err
