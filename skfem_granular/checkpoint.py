@@ -36,7 +36,7 @@ def save(sim, state, k: int, hist, series) -> Path:
         "mesh_angles": getattr(sim, "mesh_angles", None),
         "history": hist.rows,
         "counters": {"remeshes": sim.remeshes, "retries": sim.retries,
-                     "rejections": sim.rejections},
+                     "rejections": sim.rejections, "euler_steps": sim.euler_steps},
         "frames": {name: s.frames for name, s in (series or {}).items() if s is not None},
     }
     blob = pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL)

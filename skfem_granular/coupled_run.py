@@ -23,6 +23,19 @@ shrink with the step (measured: 20 % of the largest fluid velocity and
 0.15 % of the particle's, for a particle at Re 100 remeshed every 6.5 um),
 and the BDF2 derivatives carry that jump for three more steps. An estimate
 that includes it rejects every step down to ``dt_min``.
+
+Steps with a contact force, and the two after the last one, are
+backward-Euler steps. A contact is an impulse far shorter than the step
+(DEM subcycles resolve it); BDF2 answers such a kick with an overshoot
+(it is A- and G-stable, but its kinetic energy is not monotone), and with
+BDF2 throughout a hexagon hitting the floor at 3 cm/s in water came back
+with 1.37, 1.16, 0.98 times the kinetic energy of grain + fluid at fixed
+steps of 20, 10, 5 us (the energy kept rising for 2-3 steps after the
+contact had ended, with no contact force in them), and a grain resting on
+the floor rattled at 8e-5 m/s. Backward Euler is monotone: 0.68, 0.74,
+0.76 of the energy at 20, 10, 5 us (0.76 adaptive), the resting grain
+still to 5e-12 m/s. The fluid is first-order accurate in time during
+contacts (``euler_steps_at_contacts`` in the summary counts those steps).
 """
 
 from __future__ import annotations
@@ -43,6 +56,9 @@ MAX_REJECTIONS = 10
 
 #: Velocities below this (m/s) count as this in the relative local error.
 VELOCITY_FLOOR = 1e-6
+
+#: Backward-Euler steps after the last step with a contact force (module notes).
+EULER_AFTER_CONTACT = 2
 
 class SimulationError(RuntimeError):
     """A run stopped early; the history and the last good state were written."""
@@ -71,6 +87,8 @@ class CoupledState:
     dt_next: float | None = None  # the step the error control proposed
     error: float = float("nan")  # local error estimate of the step that led here
     since_remesh: int = 1_000_000  # steps since the fluid state was interpolated
+    contact_age: int = 1_000_000  # steps since the last one with a contact force
+    euler: bool = True  # the step that led here was a backward-Euler step
 
 
 def initial_state(sim) -> CoupledState:
@@ -88,58 +106,77 @@ def coupled_step(sim, s: CoupledState, step: float):
 
     With contacts, the DEM goes first, subcycled with the last fluid force held: it
     gives the positions and the mean contact force over the step, which enters the
-    coupled solve. This splitting needs steps that resolve the contact time: a
-    hexagon hitting the floor at 3 cm/s in water (contact ~100 us) comes back with
-    1.37, 1.16, 0.98 times the kinetic energy of grain + fluid at fixed steps of
-    20, 10, 5 us; iterating the held fluid force to the coupled solve's did not
-    help (1.47 at 20 us). Adaptive steps (``time.adaptive``) shrink at the contact
-    by themselves (0.82 with ``tol = 1e-3``).
+    coupled solve. Steps with a contact force, and the :data:`EULER_AFTER_CONTACT`
+    steps after the last one, are backward-Euler steps (see the module notes).
     """
     F_ext, T_ext = sim._external()
     t0 = time.perf_counter()
+    touching = False
     if sim.contacts_active:
         F_c, T_c, q_dem = sim._dem_predictor(step, s.F_held, s.T_held)
+        touching = _contact_force_acted(sim, s, step, F_ext, F_c, T_c)
         F_ext, T_ext = F_ext + F_c, T_ext + T_c
     sim.timings["dem"] += time.perf_counter() - t0
+    euler = s.dt_prev is None or touching or s.contact_age < EULER_AFTER_CONTACT
+    dt_prev = None if euler else s.dt_prev
+    u_prev = None if euler else s.u_prev
+    xi_prev = None if euler else s.xi_prev
+    if euler and s.dt_prev is not None:
+        sim.euler_steps += 1
     # linear extrapolation of the last two states as the Newton initial guess
     w = 0.0 if s.dt_prev is None else step / s.dt_prev
     u_guess = s.u_n if s.u_prev is None else s.u_n + w * (s.u_n - s.u_prev)
     xi_guess = s.xi_n if s.xi_prev is None else s.xi_n + w * (s.xi_n - s.xi_prev)
-    res = sim.coupling.step(step, s.dt_prev, s.u_n, s.u_prev, s.xi_n, s.xi_prev, F_ext, T_ext,
+    res = sim.coupling.step(step, dt_prev, s.u_n, u_prev, s.xi_n, xi_prev, F_ext, T_ext,
                             s.t + step, p_guess=s.p_n, u_guess=u_guess, xi_guess=xi_guess)
-    a0, a1, a2 = ts.bdf2_coefficients(step, s.dt_prev)
+    a0, a1, a2 = ts.bdf2_coefficients(step, dt_prev)
     xi_new = res["xi"]
     if sim.contacts_active:
         q_new = q_dem
     else:
-        q_new = (xi_new - a1 * s.q_n - (a2 * s.q_prev if s.q_prev is not None else 0.0)) / a0
+        q_new = (xi_new - a1 * s.q_n - (a2 * s.q_prev if dt_prev is not None else 0.0)) / a0
     x = res["x"]
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(q_new))):
         raise ConvergenceError(f"step at t={s.t + step:.6g}: the solution contains NaN/inf")
-    acc = a0 * xi_new + a1 * s.xi_n + (a2 * s.xi_prev if s.xi_prev is not None else 0.0)
+    acc = a0 * xi_new + a1 * s.xi_n + (a2 * xi_prev if xi_prev is not None else 0.0)
     nu = sim.space.nu
     u_new = x[:nu].copy()
     du = None
     if sim.scene.time.adaptive:
-        du = a0 * u_new + a1 * s.u_n + (a2 * s.u_prev if s.u_prev is not None else 0.0)
+        du = a0 * u_new + a1 * s.u_n + (a2 * u_prev if u_prev is not None else 0.0)
     new = CoupledState(u_n=u_new, p_n=x[nu:].copy(), xi_n=xi_new, q_n=q_new,
                        t=s.t + step, u_prev=s.u_n, xi_prev=s.xi_n, q_prev=s.q_n, dt_prev=step,
                        F_held=res["force"], T_held=res["torque"], x=x,
                        du_n=du, du_prev=s.du_n, dxi_n=acc, dxi_prev=s.dxi_n,
-                       since_remesh=s.since_remesh + 1)
+                       since_remesh=s.since_remesh + 1,
+                       contact_age=0 if touching else s.contact_age + 1, euler=euler)
     return new, res, acc
+
+
+def _contact_force_acted(sim, s: CoupledState, step: float, F_ext, F_c, T_c) -> bool:
+    """Whether the DEM predictor's mean contact force is more than the round-off of the
+    momentum difference it comes from (or a contact is open at the end of the step)."""
+    dem = sim.dem
+    if dem.contact_count().max() > 0:
+        return True
+    eps = 1e3 * np.finfo(float).eps
+    v = np.abs(np.concatenate([s.xi_n[:2], dem.velocities], axis=1)).max()
+    noise = eps * (dem.mass.max() * v / step + np.abs(F_ext).max() + np.abs(s.F_held).max())
+    return bool(np.abs(F_c).max() > noise or np.abs(T_c / sim.radius).max() > noise)
 
 
 def local_error(sim, s: CoupledState, new: CoupledState, step: float) -> float | None:
     """Milne estimate of the local error of the step ``s -> new``, relative; None if unknown.
 
-    Needs a BDF2 step (not the backward-Euler start) and the derivative at ``s``.
+    A BDF2 step is compared with the AB2 predictor, a backward-Euler step (contacts)
+    with the forward-Euler one (Milne factor 1/2). Needs the derivative at ``s``.
     """
     if s.dt_prev is None or s.du_n is None or s.dxi_n is None or s.since_remesh < 4:
         return None
-    c = ts.milne_factor(step, s.dt_prev)
-    u_pred = ts.predict(s.u_n, s.du_n, s.du_prev, step, s.dt_prev)
-    xi_pred = ts.predict(s.xi_n, s.dxi_n, s.dxi_prev, step, s.dt_prev)
+    dt_prev = None if new.euler else s.dt_prev
+    c = ts.milne_factor(step, dt_prev)
+    u_pred = ts.predict(s.u_n, s.du_n, s.du_prev, step, dt_prev)
+    xi_pred = ts.predict(s.xi_n, s.dxi_n, s.dxi_prev, step, dt_prev)
     lever = np.array([[1.0], [1.0], [0.0]]) + np.array([[0.0], [0.0], [1.0]]) * sim.radius
     e_u = c * np.abs(new.u_n - u_pred).max()
     e_xi = c * np.abs(lever * (new.xi_n - xi_pred)).max()

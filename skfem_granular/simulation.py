@@ -107,6 +107,7 @@ class Simulation:
         self.remesh_energy_ratios = []
         self.retries = 0
         self.rejections = 0
+        self.euler_steps = 0  # backward-Euler steps taken because of contacts
         self.failure = None
         self.last_good = None
         self._resume = None
@@ -146,6 +147,7 @@ class Simulation:
         sim.remeshes = data["counters"]["remeshes"]
         sim.retries = data["counters"]["retries"]
         sim.rejections = data["counters"].get("rejections", 0)
+        sim.euler_steps = data["counters"].get("euler_steps", 0)
         sim._resume = data
         return sim
 
@@ -394,6 +396,7 @@ class Simulation:
             "remeshes": self.remeshes,
             "retries": self.retries,
             "rejections": self.rejections,
+            "euler_steps_at_contacts": self.euler_steps,
             "adaptive": sc.time.adaptive,
             "dt_range": ([float(hist.dt.min()), float(hist.dt.max())] if len(hist) else None),
             "remesh_energy_ratio_max": max(self.remesh_energy_ratios, default=None),
