@@ -270,8 +270,9 @@ def test_steps_too_long_for_contacts_are_warned_about():
 def test_two_particles_collide_head_on_and_separate():
     """Two hexagons approaching each other at 5 cm/s each until their shadows touch.
 
-    Measured: contact at 8.7 ms, they separate at 2.4 cm/s, horizontal momentum of
-    the pair 1e-4 of one grain's, no inverted element on any of the 12 meshes.
+    Measured: contact at 8.7 ms, they separate at 1.2 cm/s (energy of grains + fluid
+    after / before 0.49), horizontal momentum of the pair 2e-4 of one grain's, no
+    inverted element on any of the 12 meshes.
     """
     parts = [{"center": [2.3e-3, 1.5e-3], "velocity": [0.05, 0.0], "angle": np.pi / 6},
              {"center": [3.7e-3, 1.5e-3], "velocity": [-0.05, 0.0], "angle": np.pi / 6}]
@@ -280,7 +281,7 @@ def test_two_particles_collide_head_on_and_separate():
     assert len(h) == 600 and meshes[:, 0].max() == 0 and meshes[:, 1].min() > 0
     first, last, ratio = _bounce(h, _energy(sim, h))
     assert 0 < first < last < len(h) - 1
-    assert h.vx[-1, 0] < -0.01 and h.vx[-1, 1] > 0.01  # they move apart
+    assert h.vx[-1, 0] < -0.005 and h.vx[-1, 1] > 0.005  # they move apart
     assert abs(h.vx[-1].sum()) < 1e-3 * abs(h.vx[-1, 0])
     assert ratio < 1.0
     gap = sim.dem.core_outlines()[1][0].min() - sim.dem.core_outlines()[0][0].max()
