@@ -110,7 +110,7 @@ def test_overlap_properties(A, B):
     if np.hypot(*(cA - cB)) > rA + rB:
         assert a == 0.0
     # snapping moves area <= snap anywhere within the diameter (<= 4): the centroid by up
-    # to snap 4 / a (hypothesis found a 15-gon against a near-copy of itself whose
+    # to snap 4 / a (hypothesis found a regular polygon against a near-copy of itself whose
     # centroids came out 1.2e-10 apart)
     c_tol = 1e-10 + snap * 4.0 / max(a, 1e-300)
     if a > 1e-8:
