@@ -177,7 +177,7 @@ def local_error(sim, s: CoupledState, new: CoupledState, step: float) -> float |
     c = ts.milne_factor(step, dt_prev)
     u_pred = ts.predict(s.u_n, s.du_n, s.du_prev, step, dt_prev)
     xi_pred = ts.predict(s.xi_n, s.dxi_n, s.dxi_prev, step, dt_prev)
-    lever = np.array([[1.0], [1.0], [0.0]]) + np.array([[0.0], [0.0], [1.0]]) * sim.radius
+    lever = np.vstack([np.ones((2, sim.radius.size)), sim.radius])  # omega counts as omega r
     e_u = c * np.abs(new.u_n - u_pred).max()
     e_xi = c * np.abs(lever * (new.xi_n - xi_pred)).max()
     scale = max(float(np.abs(new.u_n).max()), float(np.abs(lever * new.xi_n).max()),

@@ -106,6 +106,10 @@ def test_resume_adaptive_run_bit_for_bit(tmp_path):
     part = Simulation(replace(scene, time=replace(scene.time, t_end=2e-4), checkpoint_every=8),
                       output_dir=tmp_path / "part")
     part.run(progress=False)  # writes checkpoints at 8, 16, ... steps; resume the last
+    from skfem_granular import checkpoint
+
+    k = checkpoint.load(tmp_path / "part")["k"]
+    assert 0 < k < len(h_full)  # the resumed run takes steps of its own (measured 16 of 23)
     resumed = Simulation.resume(tmp_path / "part", t_end=2e-4)
     assert resumed.scene.time.adaptive and resumed.scene.time.tol == 1e-4
     h_res = resumed.run(progress=False).history

@@ -78,12 +78,12 @@ def test_solution_and_fill_against_superlu_own_ordering(system, method, bound):
 
 
 def test_inexact_solve_with_ordering_is_close(system):
-    """The chord loops' unrefined solve: error about the regularisation (1e-8 relative)."""
+    """The chord loops' unrefined solve: measured 7.6e-9 relative to the refined one."""
     _, op, _, J, b = system
     s = SuperLUSolver().factorize(J, op.nu_free, **op.solver_blocks(A0))
     x = s.solve(b)
     y = s._solve_inexact(b)
-    assert np.linalg.norm(y - x) <= 1e-5 * np.linalg.norm(x)
+    assert np.linalg.norm(y - x) <= 1e-7 * np.linalg.norm(x)
 
 
 def test_nested_dissection_separates_halves():
@@ -151,7 +151,7 @@ def test_factor_plan_on_a_fixed_pattern_solves_exactly(system, with_mp, monkeypa
 @pytest.mark.parametrize("delta, refined", [(1e-11, False), (1e-3, True)])
 def test_newton_solve_checks_its_residual(system, delta, refined):
     """The unrefined solve of a Newton correction: one triangular solve when its residual
-    is below 1e-6 (measured 1.9e-9 with the default regularisation), refined otherwise."""
+    is below 1e-6 (measured 4e-13 here, 1.9e-9 at 77k unknowns), refined otherwise."""
     _, op, _, J, b = system
     s = SuperLUSolver(delta=delta).factorize(J, op.nu_free, **op.solver_blocks(A0))
     calls = []
@@ -163,4 +163,4 @@ def test_newton_solve_checks_its_residual(system, delta, refined):
     if refined:
         assert len(calls) >= 3 and res <= 1e-12
     else:
-        assert len(calls) == 1 and res <= 1e-8
+        assert len(calls) == 1 and res <= 1e-10

@@ -263,13 +263,20 @@ class NavierStokesOperator:
         return np.asarray(self.space.Mp.sum(axis=0)).ravel()
 
     def solver_blocks(self, c_mass: float = 0.0) -> dict:
-        """Extra blocks for the solvers (preconditioners, ordering), on the free DOFs."""
-        sp_ = self.space
-        pfree = self.free[self.nu_free:] - sp_.nu
-        Mp = sp_.Mp[pfree][:, pfree]
-        Lp = sp_.Lp[pfree][:, pfree]
+        """Extra blocks for the solvers (preconditioners, ordering), on the free DOFs.
+
+        The blocks are built once per operator and shared: do not modify them.
+        """
+        Mp, Lp = self._free_pressure_blocks
         return dict(Mp=Mp, Lp=Lp, eta=self.fluid.viscosity, a0rho=c_mass * self.fluid.density,
                     ordering=self.ordering)
+
+    @cached_property
+    def _free_pressure_blocks(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """Pressure mass and Laplace matrices restricted to the free pressures."""
+        sp_ = self.space
+        pfree = self.free[self.nu_free:] - sp_.nu
+        return sp_.Mp[pfree][:, pfree], sp_.Lp[pfree][:, pfree]
 
     @cached_property
     def ordering(self) -> np.ndarray:
