@@ -1,6 +1,6 @@
 """The paper's Section 7: an n x n block of grains sedimenting in a wide box.
 
-Runs ``scenes/collapse.toml`` (5 x 5 hexagons, group mesh, contacts,
+Runs the bundled ``collapse`` scene (5 x 5 hexagons, group mesh, contacts,
 remeshing) to ``--t-end`` (default the scene's 0.16 s), writes VTU/PVD output
 to ``out/collapse``, a picture of the initial and final states to
 ``docs/figures/collapse_{initial,final}.png`` and the figures to
@@ -19,8 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from skfem_granular.scene import Scene
-from skfem_granular.scene_parse import grid_particles
+from skfem_granular.scene import Scene, bundled, grid_particles
 from skfem_granular.simulation import Simulation
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -72,13 +71,13 @@ def main():
     ap.add_argument("--t-end", type=float, default=None)
     ap.add_argument("--n", type=int, default=5)
     args = ap.parse_args()
-    sc = Scene.from_toml(ROOT / "scenes/collapse.toml")
+    sc = Scene.bundled("collapse")
     if args.t_end is not None:
         sc = replace(sc, time=replace(sc.time, t_end=args.t_end))
     if args.n != 5:
         import tomllib
 
-        grid = tomllib.loads((ROOT / "scenes/collapse.toml").read_text())["grid"]
+        grid = tomllib.loads(bundled("collapse").read_text())["grid"]
         sc = replace(sc, particles=tuple(grid_particles({**grid, "nx": args.n, "ny": args.n})))
     figs = ROOT / "docs/figures"
     figs.mkdir(parents=True, exist_ok=True)

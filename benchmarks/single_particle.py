@@ -1,6 +1,6 @@
 """The paper's Section 6 on this machine: graded vs fine mesh, and the step size.
 
-Runs ``scenes/single_particle.toml`` (graded) and its fine-mesh twin for
+Runs the bundled ``single_particle`` scene (graded) and its fine-mesh twin for
 1 ms, whole runs including meshing and output, and a time-step convergence
 series of the vertical velocity at 1 ms on the graded mesh. Writes
 ``benchmarks/results/single_particle.json`` and prints a markdown table.
@@ -37,8 +37,8 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    scenes = {"graded": Scene.from_toml(ROOT / "scenes/single_particle.toml"),
-              "fine": Scene.from_toml(ROOT / "scenes/single_particle_fine.toml")}
+    scenes = {"graded": Scene.bundled("single_particle"),
+              "fine": Scene.bundled("single_particle_fine")}
     rows = {}
     for name, sc in scenes.items():
         times, res = [], None

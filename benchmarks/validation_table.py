@@ -40,7 +40,7 @@ import test_simulation as tsim  # noqa: E402
 from helpers import annulus, box, regular_polygon  # noqa: E402
 
 import skfem_granular as sg  # noqa: E402
-from skfem_granular.coupling_partitioned import PartitionedCoupling  # noqa: E402
+from skfem_granular.coupled import PartitionedCoupling  # noqa: E402
 from skfem_granular.fluid import ConvergenceError  # noqa: E402
 from skfem_granular.scene import Scene  # noqa: E402
 from skfem_granular.simulation import Simulation  # noqa: E402
@@ -228,7 +228,7 @@ def added_mass_case():
 
 # --------------------------------------------------------------- case 8
 def symmetry_case():
-    paper = Scene.from_toml(ROOT / "scenes" / "single_particle.toml")
+    paper = Scene.bundled("single_particle")
     out = {"t_end": 1e-4, "dt": paper.time.dt}
     for name, scene in (("graded", tsim._short(paper)),
                         ("uniform", tsim._short(paper).with_mesh("uniform"))):

@@ -7,9 +7,14 @@ outlines and returns ``skfem.MeshTri`` objects with named boundaries
 
 Builders: :func:`graded_mesh` (concentric circles, Eq. 4),
 :func:`uniform_mesh` (equidistant), :func:`group_mesh` (fine region around a
-particle group, graded outside). Moving particles: :func:`move_particles`,
-:func:`remesh_needed`, :func:`remesh`. Inspection: :func:`mesh_stats`,
-:func:`plot_mesh`.
+particle group, graded outside); each returns a plain ``skfem.MeshTri``.
+Mesh with provenance: :func:`build` (``build("graded" | "uniform" | "group",
+domain, particles, **options)``) returns a :class:`BodyFittedMesh`, the same
+mesh together with its :class:`Recipe` and the particles' outline vertex
+indices, kept beside the mesh so that scikit-fem transforms of the mesh
+cannot drop them. Moving particles (on a :class:`BodyFittedMesh`):
+:func:`move_particles`, :func:`remesh_needed`, :func:`remesh`. Inspection:
+:func:`mesh_stats`, :func:`plot_mesh`.
 """
 
 from .graded import graded_mesh, ring_radii
@@ -18,6 +23,8 @@ from .plot import plot_mesh
 from .quality import MeshStats, mesh_stats, remesh_needed
 from .remesh import move_particles, remesh
 from .uniform import uniform_mesh
+from .value import BodyFittedMesh, Recipe, build
 
-__all__ = ["MeshStats", "graded_mesh", "group_mesh", "mesh_stats", "move_particles",
-           "plot_mesh", "remesh", "remesh_needed", "ring_radii", "uniform_mesh"]
+__all__ = ["BodyFittedMesh", "MeshStats", "Recipe", "build", "graded_mesh", "group_mesh",
+           "mesh_stats", "move_particles", "plot_mesh", "remesh", "remesh_needed",
+           "ring_radii", "uniform_mesh"]

@@ -30,7 +30,8 @@ from .geometry import (
 )
 from .pslg import Layout
 from .repair import build
-from .skfem_mesh import Recipe, to_meshtri
+from .skfem_mesh import to_body_fitted
+from .value import BodyFittedMesh, Recipe
 
 SIGMA_MAX = 1.6
 """Largest accepted growth factor given by the user (element size doubling
@@ -209,8 +210,10 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
     -------
     skfem.MeshTri
         With ``boundaries`` ``"wall"`` (and ``"bottom"``, ``"right"``,
-        ``"top"``, ``"left"`` for a rectangle), ``"particle0"``, ...; the
-        attributes ``meshing_recipe`` and ``particle_nodes``.
+        ``"top"``, ``"left"`` for a rectangle), ``"particle0"``, ...
+        ``meshing.build("graded", domain, particles, ...)`` returns the same
+        mesh as a :class:`meshing.BodyFittedMesh`, with its recipe and the
+        particles' outline vertex indices.
 
     Quality: minimum angle >= 20 degrees and ``R / (2 r) <= 3`` (see
     :func:`meshing.mesh_stats`) whenever particles keep at least one outline
@@ -222,6 +225,17 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
     its own particle's size field is the smallest, so circles of different
     particles do not interpenetrate. For dense groups use
     :func:`meshing.group_mesh`.
+    """
+    return build_graded(domain, particles, sigma=sigma, delta_l=delta_l,
+                        relax_rounds=relax_rounds).mesh
+
+
+def build_graded(domain: object, particles: object, *, sigma: float | None = None,
+                 delta_l: float | None = None, relax_rounds: int = 4) -> BodyFittedMesh:
+    """:func:`graded_mesh` as a :class:`~meshing.value.BodyFittedMesh`.
+
+    What :func:`meshing.build` calls for ``kind="graded"``; the arguments and
+    the mesh are those of :func:`graded_mesh`.
     """
     sigma = check_sigma(sigma)
     check_rounds(relax_rounds)
@@ -255,4 +269,4 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
     layout, tri = build(layout, sizing, outlines, relax_rounds)
     recipe = Recipe("graded", domain, tuple(outlines),
                     dict(sigma=sigma, delta_l=delta_l, relax_rounds=relax_rounds))
-    return to_meshtri(tri, layout, recipe)
+    return to_body_fitted(tri, layout, recipe)

@@ -28,8 +28,9 @@ from .graded import (
 )
 from .pslg import Layout, fixed_point, triangulate
 from .repair import build
-from .skfem_mesh import Recipe, to_meshtri
+from .skfem_mesh import to_body_fitted
 from .uniform import AREA_FACTOR, MIN_ANGLE, split_walls
+from .value import BodyFittedMesh, Recipe
 
 GROUP_SIGMA = 1.2
 """Default growth factor of the element size per circle outside a group (the
@@ -106,6 +107,21 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
         Named boundaries as in :func:`meshing.graded_mesh`; ``subdomains``
         ``"fine"`` and ``"graded"`` (element indices). The transition edges
         are the facets shared by a fine and a graded element.
+        ``meshing.build("group", domain, particles, ...)`` returns the same
+        mesh as a :class:`meshing.BodyFittedMesh`.
+    """
+    return build_group(domain, particles, h=h, sigma=sigma, delta_l=delta_l, center=center,
+                       radius=radius, relax_rounds=relax_rounds).mesh
+
+
+def build_group(domain: object, particles: object, *, h: float | None = None,
+                sigma: float | None = None, delta_l: float | None = None,
+                center: object = None, radius: float | None = None,
+                relax_rounds: int = 4) -> BodyFittedMesh:
+    """:func:`group_mesh` as a :class:`~meshing.value.BodyFittedMesh`.
+
+    What :func:`meshing.build` calls for ``kind="group"``; the arguments and
+    the mesh are those of :func:`group_mesh`.
     """
     sigma = check_sigma(sigma)
     check_rounds(relax_rounds)
@@ -144,7 +160,7 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
     recipe = Recipe("group", domain, tuple(outlines),
                     dict(h=h, sigma=sigma, delta_l=delta_l, center=center, radius=radius_arg,
                          relax_rounds=relax_rounds))
-    return to_meshtri(tri, layout, recipe, {"fine": in_fine, "graded": ~in_fine})
+    return to_body_fitted(tri, layout, recipe, {"fine": in_fine, "graded": ~in_fine})
 
 
 def fit_circle(D: NDArray[np.float64], allv: NDArray[np.float64], c: NDArray[np.float64],

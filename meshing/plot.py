@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .value import mesh_of
+
 
 def plot_mesh(mesh, ax=None, boundaries: bool = True, lw: float = 0.4,
               color: str = "0.55", legend: bool = True):
@@ -13,7 +15,7 @@ def plot_mesh(mesh, ax=None, boundaries: bool = True, lw: float = 0.4,
     ----------
     mesh
         ``skfem.MeshTri`` (any mesh with ``p``, ``t``, ``facets`` and
-        ``boundaries``).
+        ``boundaries``) or :class:`meshing.BodyFittedMesh` (its mesh is drawn).
     ax
         Matplotlib axes; a new figure is made when ``None``.
     boundaries
@@ -33,6 +35,7 @@ def plot_mesh(mesh, ax=None, boundaries: bool = True, lw: float = 0.4,
         from matplotlib.collections import LineCollection
     except ImportError as err:  # pragma: no cover
         raise ImportError("plot_mesh needs matplotlib: pip install matplotlib") from err
+    mesh = mesh_of(mesh)
     if ax is None:
         _, ax = plt.subplots()
     p, t = np.asarray(mesh.p), np.asarray(mesh.t)

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .value import mesh_of
+
 MERGE_ASPECT = 2.0
 """Triangles with ``R / (2 r)`` above this are degenerate and get merged."""
 
@@ -97,7 +99,8 @@ def triangle_stats(p: NDArray[np.float64], t: NDArray[np.int64]) -> MeshStats:
 
 
 def mesh_stats(mesh) -> MeshStats:
-    """Statistics of a ``skfem.MeshTri`` (see :class:`MeshStats`).
+    """Statistics of a ``skfem.MeshTri`` or a :class:`meshing.BodyFittedMesh`'s mesh
+    (see :class:`MeshStats`).
 
     Examples
     --------
@@ -106,6 +109,7 @@ def mesh_stats(mesh) -> MeshStats:
     >>> s.min_angle >= 30.0
     True
     """
+    mesh = mesh_of(mesh)
     return triangle_stats(np.asarray(mesh.p), np.asarray(mesh.t, dtype=np.int64))
 
 
@@ -122,7 +126,8 @@ def remesh_needed(mesh, min_angle: float = 15.0, max_aspect: float = 5.0) -> boo
     Parameters
     ----------
     mesh
-        ``skfem.MeshTri``, typically from :func:`meshing.move_particles`.
+        ``skfem.MeshTri`` or :class:`meshing.BodyFittedMesh`, typically
+        from :func:`meshing.move_particles`.
     min_angle
         Smallest acceptable angle in degrees, ``0 < min_angle < 60``.
     max_aspect
@@ -132,6 +137,7 @@ def remesh_needed(mesh, min_angle: float = 15.0, max_aspect: float = 5.0) -> boo
         raise ValueError(f"min_angle: must be in (0, 60) degrees, got {min_angle!r}")
     if not max_aspect > 1.0:
         raise ValueError(f"max_aspect: must be > 1, got {max_aspect!r}")
+    mesh = mesh_of(mesh)
     p, t = np.asarray(mesh.p), np.asarray(mesh.t, dtype=np.int64)
     if np.any(signed_areas(p, t) <= 0.0):
         return True

@@ -1,12 +1,18 @@
 """Moving particles in an existing mesh, and rebuilding a mesh for moved particles.
 
+Both work on a :class:`meshing.BodyFittedMesh` (from :func:`meshing.build`,
+or from :func:`remesh` and :func:`move_particles` themselves), whose recipe
+and particle nodes say how the mesh was built and where the particles are.
 Typical loop (the paper's Section 4: move, check, relax and re-triangulate)::
 
-    moved = meshing.move_particles(mesh, new_outlines)
+    value = meshing.build("graded", domain, outlines)
+    ...
+    moved = meshing.move_particles(value, new_outlines)
     if meshing.remesh_needed(moved):
-        mesh = meshing.remesh(mesh, new_outlines)   # same kind, options, quality
+        value = meshing.remesh(value, new_outlines)   # same kind, options, quality
     else:
-        mesh = moved
+        value = moved
+    mesh = value.mesh
 """
 
 from __future__ import annotations
@@ -19,22 +25,24 @@ import skfem
 from numpy.typing import NDArray
 
 from .geometry import as_particles, centroid, subdivide
-from .graded import graded_mesh
-from .group import group_mesh
-from .uniform import uniform_mesh
-
-BUILDERS = {"graded": graded_mesh, "uniform": uniform_mesh, "group": group_mesh}
+from .value import BodyFittedMesh, Recipe, build
 
 
-def _recipe(mesh):
-    recipe = getattr(mesh, "meshing_recipe", None)
-    if recipe is None:
-        raise ValueError("mesh: has no meshing_recipe; pass a mesh made by graded_mesh, "
-                         "uniform_mesh, group_mesh, remesh or move_particles")
-    return recipe
+def _recipe(mesh: object) -> Recipe:
+    """The recipe of a :class:`BodyFittedMesh`; ValueError for anything else."""
+    if isinstance(mesh, BodyFittedMesh):
+        if mesh.recipe is not None:
+            return mesh.recipe
+        got = "a BodyFittedMesh with recipe None"
+    elif isinstance(mesh, skfem.Mesh):
+        got = f"a bare skfem.{type(mesh).__name__}"
+    else:
+        got = f"{type(mesh).__name__}"
+    raise ValueError(f"mesh: has no meshing_recipe (got {got}; pass a BodyFittedMesh from "
+                     "meshing.build, remesh or move_particles)")
 
 
-def _outlines(recipe, particles: object) -> list[NDArray[np.float64]]:
+def _outlines(recipe: Recipe, particles: object) -> list[NDArray[np.float64]]:
     new = as_particles(particles)
     if len(new) != len(recipe.particles):
         raise ValueError(f"particles: expected {len(recipe.particles)} outlines (as in the "
@@ -42,15 +50,15 @@ def _outlines(recipe, particles: object) -> list[NDArray[np.float64]]:
     return new
 
 
-def remesh(mesh: skfem.MeshTri, particles: object, **changes) -> skfem.MeshTri:
+def remesh(mesh: BodyFittedMesh, particles: object, **changes) -> BodyFittedMesh:
     """Build a new mesh of the same kind and options for moved particles.
 
     Parameters
     ----------
     mesh
-        A mesh made by :func:`meshing.graded_mesh`, :func:`meshing.uniform_mesh`,
-        :func:`meshing.group_mesh` (or by this function); its
-        ``meshing_recipe`` records domain, kind and options.
+        A :class:`meshing.BodyFittedMesh` from :func:`meshing.build` (or from
+        this function or :func:`meshing.move_particles`); its ``recipe``
+        records domain, kind and options.
     particles
         The particles' new outlines (same number as in ``mesh``), moved
         and/or rotated; validated like the builders' input.
@@ -59,15 +67,16 @@ def remesh(mesh: skfem.MeshTri, particles: object, **changes) -> skfem.MeshTri:
 
     Returns
     -------
-    skfem.MeshTri
-        A freshly built mesh: the same construction, so the same quality
-        bounds and boundary names; the node set is new (interpolate fields
-        onto it).
+    BodyFittedMesh
+        ``meshing.build(kind, domain, particles, **options)`` with the
+        recipe's kind, domain and options (updated by ``changes``): the same
+        construction, so the same quality bounds and boundary names; the node
+        set is new (interpolate fields onto it).
     """
     recipe = _recipe(mesh)
     new = _outlines(recipe, particles)
     options = {**recipe.options, **changes}
-    return BUILDERS[recipe.kind](recipe.domain, new, **options)
+    return build(recipe.kind, recipe.domain, new, **options)
 
 
 def rigid_fit(old: NDArray[np.float64], new: NDArray[np.float64]
@@ -81,8 +90,8 @@ def rigid_fit(old: NDArray[np.float64], new: NDArray[np.float64]
     return R, co, cn
 
 
-def move_particles(mesh: skfem.MeshTri, particles: object,
-                   falloff: float | Sequence[float] | None = None) -> skfem.MeshTri:
+def move_particles(mesh: BodyFittedMesh, particles: object,
+                   falloff: float | Sequence[float] | None = None) -> BodyFittedMesh:
     """Move particle outline nodes to new outlines, dragging nearby nodes along.
 
     The particle nodes are placed exactly at the new (subdivided) outline
@@ -95,7 +104,8 @@ def move_particles(mesh: skfem.MeshTri, particles: object,
     Parameters
     ----------
     mesh
-        Mesh with ``particle_nodes`` and ``meshing_recipe`` (from this package).
+        A :class:`meshing.BodyFittedMesh` with a recipe (from
+        :func:`meshing.build`, :func:`meshing.remesh` or this function).
     particles
         New outlines, the same number and (after subdivision by the mesh's
         ``delta_l``) the same vertex counts as the mesh's particles.
@@ -105,20 +115,21 @@ def move_particles(mesh: skfem.MeshTri, particles: object,
 
     Returns
     -------
-    skfem.MeshTri
-        Same connectivity, boundaries and subdomains; ``meshing_recipe``
-        updated with the new outlines.
+    BodyFittedMesh
+        Same connectivity, boundaries, subdomains and ``particle_nodes``;
+        ``recipe`` updated with the new outlines.
     """
     recipe = _recipe(mesh)
+    nodes = mesh.particle_nodes
+    skmesh = mesh.mesh
     new = _outlines(recipe, particles)
     new = [subdivide(P, recipe.options.get("delta_l")) for P in new]
-    p = np.array(mesh.p, dtype=np.float64)
+    p = np.array(skmesh.p, dtype=np.float64)
     q = p.copy()
-    nodes = mesh.particle_nodes
     fall = np.broadcast_to(np.asarray(np.nan if falloff is None else falloff, dtype=float),
                            (len(new),))
     boundary = np.zeros(p.shape[1], dtype=bool)
-    boundary[np.unique(mesh.facets[:, mesh.boundary_facets()])] = True
+    boundary[np.unique(skmesh.facets[:, skmesh.boundary_facets()])] = True
     weight = np.zeros(p.shape[1])
     shift = np.zeros_like(p)
     for k, (idx, P) in enumerate(zip(nodes, new, strict=True)):
@@ -142,8 +153,7 @@ def move_particles(mesh: skfem.MeshTri, particles: object,
     q[:, free] += (shift * scale)[:, free]
     for idx, P in zip(nodes, new, strict=True):
         q[:, idx] = P
-    moved = skfem.MeshTri(q, np.asarray(mesh.t), _boundaries=mesh._boundaries,
-                          _subdomains=mesh._subdomains, sort_t=False)
-    moved.particle_nodes = nodes
-    moved.meshing_recipe = replace(recipe, particles=tuple(new))
-    return moved
+    moved = skfem.MeshTri(q, np.asarray(skmesh.t), _boundaries=skmesh._boundaries,
+                          _subdomains=skmesh._subdomains, sort_t=False)
+    return BodyFittedMesh(mesh=moved, recipe=replace(recipe, particles=tuple(new)),
+                          particle_nodes=nodes)

@@ -8,40 +8,24 @@ circumscribed circle, so a radius test misses them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
-
 import numpy as np
 import skfem
 from numpy.typing import NDArray
 
 from .pslg import Layout, Triangulation, boundary_labels
+from .value import BodyFittedMesh, Recipe
 
 
-@dataclass(frozen=True)
-class Recipe:
-    """How a mesh was built, so that :func:`meshing.remesh` can build it again.
-
-    ``kind`` is ``"graded"``, ``"uniform"`` or ``"group"``; ``options`` are
-    the builder's keyword arguments except ``particles``.
-    """
-
-    kind: str
-    domain: Any
-    particles: tuple[NDArray[np.float64], ...]
-    options: dict[str, Any] = field(default_factory=dict)
-
-
-def to_meshtri(tri: Triangulation, layout: Layout, recipe: Recipe | None = None,
-               subdomains: dict[str, NDArray[np.bool_]] | None = None) -> skfem.MeshTri:
-    """Build a ``skfem.MeshTri`` from a triangulation.
+def to_body_fitted(tri: Triangulation, layout: Layout, recipe: Recipe | None = None,
+                   subdomains: dict[str, NDArray[np.bool_]] | None = None) -> BodyFittedMesh:
+    """Build a ``skfem.MeshTri`` from a triangulation, with its provenance.
 
     Unused nodes (duplicates ``triangle`` skipped) are dropped. The mesh gets
     ``boundaries`` ``"wall"`` (plus ``"bottom"``, ``"right"``, ``"top"``,
-    ``"left"`` for a rectangle) and ``"particle0"``, ... , optional
-    ``subdomains`` (boolean masks over triangles), and the attributes
-    ``meshing_recipe`` (:class:`Recipe`) and ``particle_nodes`` (list of
-    vertex index arrays, in outline order).
+    ``"left"`` for a rectangle) and ``"particle0"``, ... , and optional
+    ``subdomains`` (boolean masks over triangles). Returned as a
+    :class:`~meshing.value.BodyFittedMesh` with ``recipe`` and the particles'
+    outline vertex indices (``particle_nodes``, in outline order).
     """
     used = np.zeros(tri.points.shape[1], dtype=bool)
     used[tri.t.ravel()] = True
@@ -73,6 +57,4 @@ def to_meshtri(tri: Triangulation, layout: Layout, recipe: Recipe | None = None,
     for P in layout.particles:
         nodes.append(new[off + np.arange(P.shape[1])])
         off += P.shape[1]
-    mesh.particle_nodes = nodes
-    mesh.meshing_recipe = recipe
-    return mesh
+    return BodyFittedMesh(mesh=mesh, recipe=recipe, particle_nodes=tuple(nodes))

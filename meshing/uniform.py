@@ -9,7 +9,8 @@ from numpy.typing import NDArray
 from .geometry import MAX_ELEMENTS
 from .graded import prepare
 from .pslg import Layout, fixed_point, triangulate
-from .skfem_mesh import Recipe, to_meshtri
+from .skfem_mesh import to_body_fitted
+from .value import BodyFittedMesh, Recipe
 
 AREA_FACTOR = 1.5
 """Area bound over the equilateral area ``sqrt(3)/4 h**2``. ``triangle`` keeps
@@ -66,6 +67,19 @@ def uniform_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (
         Named boundaries as in :func:`meshing.graded_mesh`. Particle outline
         nodes and domain edges are not split (``triangle``'s ``Y`` switch), so
         outline nodes are exactly the given (subdivided) vertices.
+        ``meshing.build("uniform", domain, particles, ...)`` returns the same
+        mesh as a :class:`meshing.BodyFittedMesh`.
+    """
+    return build_uniform(domain, particles, h=h, delta_l=delta_l, min_angle=min_angle).mesh
+
+
+def build_uniform(domain: object, particles: object, *, h: float | None = None,
+                  delta_l: float | None = None, min_angle: float = MIN_ANGLE
+                  ) -> BodyFittedMesh:
+    """:func:`uniform_mesh` as a :class:`~meshing.value.BodyFittedMesh`.
+
+    What :func:`meshing.build` calls for ``kind="uniform"``; the arguments and
+    the mesh are those of :func:`uniform_mesh`.
     """
     D, names, outlines = prepare(domain, particles, delta_l)
     if not 0.0 < float(min_angle) <= 33.0:
@@ -97,4 +111,4 @@ def uniform_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (
     tri = triangulate(layout, f"q{fixed_point(float(min_angle))}Ya{fixed_point(area)}")
     recipe = Recipe("uniform", domain, tuple(outlines),
                     dict(h=h, delta_l=delta_l, min_angle=min_angle))
-    return to_meshtri(tri, layout, recipe)
+    return to_body_fitted(tri, layout, recipe)

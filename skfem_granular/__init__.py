@@ -18,10 +18,11 @@ from .fluid import (
 )
 from .fluid.unsteady import BDF2Integrator, evolve
 from .scene import Effects, MeshSpec, ParticleSpec, Scene, TimeSpec
-from .simulation import Simulation, SimulationResult
+from .simulation import Simulation, SimulationError, SimulationResult
 
 __version__ = "0.1.0"
 
 __all__ = ["BDF2Integrator", "ConvergenceError", "Effects", "Flow", "Fluid", "MeshSpec",
-           "ParticleSpec", "Polygon", "RigidMotion", "Scene", "Simulation", "SimulationResult",
+           "ParticleSpec", "Polygon", "RigidMotion", "Scene", "Simulation", "SimulationError",
+           "SimulationResult",
            "SolveReport", "TaylorHood", "TimeSpec", "evolve", "solve_steady"]

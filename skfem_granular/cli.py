@@ -1,9 +1,11 @@
 """The ``skfem-granular`` command.
 
-- ``skfem-granular run SCENE.toml [--mesh graded|uniform|group] [--out DIR] [--t-end T] [--dt DT]``
-  runs a scene and writes ``flow.pvd`` (VTU frames), ``particles.pvd``,
-  ``history.csv`` and ``summary.json`` into the output directory;
+- ``skfem-granular run SCENE [--mesh graded|uniform|group] [--out DIR] [--t-end T] [--dt DT]``
+  runs a scene (a TOML file, or the name of a bundled scene: ``run single-particle``) and
+  writes ``flow.pvd`` (VTU frames), ``particles.pvd``, ``history.csv`` and ``summary.json``
+  into the output directory;
   ``skfem-granular run --resume DIR [--t-end T]`` continues from its checkpoint.
+- ``skfem-granular scenes`` lists the bundled scenes (name and first comment line).
 - ``skfem-granular render DIR --png PATH | --animation PATH`` draws a run's output.
 - ``skfem-granular study single-particle|faxen`` runs an accuracy-vs-cost study.
 
@@ -32,7 +34,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene (TOML)")
-    run.add_argument("scene", nargs="?", help="scene file, e.g. scenes/single_particle.toml")
+    run.add_argument("scene", nargs="?",
+                     help="scene file (path/to/scene.toml) or bundled scene name, e.g. "
+                          "single-particle (see 'skfem-granular scenes')")
     run.add_argument("--resume", metavar="DIR",
                      help="continue the run whose checkpoint.pkl is in DIR (--t-end may extend it)")
     run.add_argument("--mesh", choices=["graded", "uniform", "group"], help="override mesh.kind")
@@ -43,6 +47,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="adaptive steps with this local error tolerance (time.adaptive, "
                           "time.tol); time.dt becomes the first and largest step")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    sub.add_parser("scenes", help="list the bundled scenes (names for 'run')")
     ren = sub.add_parser("render", help="picture (PNG) or animation (GIF/MP4) of a run's output")
     ren.add_argument("out", help="output directory of a run (with flow.pvd, particles.pvd)")
     ren.add_argument("--field", default="speed", choices=["speed", "pressure", "vorticity", "mesh"])
@@ -99,10 +104,10 @@ def _check_out(field: str, out) -> None:
     """Fail early, naming ``field``, when the output directory cannot be created or written."""
     from pathlib import Path
 
-    from .io import _check_writable
+    from .io import check_writable
 
     try:
-        _check_writable(Path(out) / "summary.json")
+        check_writable(Path(out) / "summary.json")
     except ValueError as exc:
         raise ValueError(f"{field} = {str(out)!r}: must be a writable directory; {exc}") from None
 
@@ -114,6 +119,8 @@ def main(argv=None) -> int:
     except _UsageError as exc:
         print(f"skfem-granular: error: {exc} (see skfem-granular --help)", file=sys.stderr)
         return 2
+    if args.command == "scenes":
+        return _scenes()
     if args.command == "render":
         return _render(args)
     if args.command == "study":
@@ -130,7 +137,7 @@ def main(argv=None) -> int:
             return _finish_run(sim, args)
         if not args.scene:
             raise ValueError("run: give a scene file (or --resume DIR)")
-        scene = Scene.from_toml(args.scene)
+        scene = Scene.from_toml(_scene_path(args.scene))
         if args.mesh:
             scene = scene.with_mesh(args.mesh)
         if args.t_end is not None or args.dt is not None or args.tol is not None:
@@ -152,6 +159,33 @@ def main(argv=None) -> int:
     return _finish_run(sim, args)
 
 
+def _scene_path(arg: str):
+    """``arg`` as a path if it exists, else the bundled scene of that name, else ``arg``
+    as a path again (so that reading it reports the missing file)."""
+    from pathlib import Path
+
+    from .scene import bundled
+
+    path = Path(arg)
+    if path.exists():
+        return path
+    try:
+        return bundled(arg)
+    except ValueError:
+        return path
+
+
+def _scenes() -> int:
+    """``skfem-granular scenes``: the bundled scenes, one line each."""
+    from .scene import bundled_scenes, first_comment
+
+    scenes = bundled_scenes()
+    width = max(len(n) for n in scenes)
+    for name, path in scenes.items():
+        print(f"{name:<{width}}  {first_comment(path)}")
+    return 0
+
+
 def _finish_run(sim, args) -> int:
     result = sim.run(progress=not args.no_progress)
     print(format_summary(result.summary))
@@ -162,7 +196,7 @@ def _finish_run(sim, args) -> int:
 def _render(args) -> int:
     from pathlib import Path
 
-    from . import render
+    from . import viz
 
     out = Path(args.out)
     try:
@@ -170,18 +204,18 @@ def _render(args) -> int:
             raise ValueError(f"out = {str(out)!r}: no flow.pvd there (run a fluid scene first)")
         if not args.png and not args.animation:
             raise ValueError("render: give --png PATH and/or --animation PATH")
-        frames = render.read_pvd(out / "flow.pvd")
-        parts = render.read_pvd(out / "particles.pvd") if (out / "particles.pvd").exists() else []
+        frames = viz.read_pvd(out / "flow.pvd")
+        parts = viz.read_pvd(out / "particles.pvd") if (out / "particles.pvd").exists() else []
         if args.png:
             if not -len(frames) <= args.frame < len(frames):
                 raise ValueError(f"--frame = {args.frame}: must be in [{-len(frames)}, "
                                  f"{len(frames) - 1}]")
             t, f = frames[args.frame]
             p = parts[args.frame][1] if len(parts) == len(frames) else None
-            render.render_frame(f, p, args.png, field=args.field, vectors=args.vectors, time=t)
+            viz.render_frame(f, p, args.png, field=args.field, vectors=args.vectors, time=t)
             print(f"wrote {args.png}")
         if args.animation:
-            render.render_series(out, args.animation, field=args.field, vectors=args.vectors)
+            viz.render_series(out, args.animation, field=args.field, vectors=args.vectors)
             print(f"wrote {args.animation}")
     except (ValueError, ImportError) as exc:
         print(f"skfem-granular: error: {exc}", file=sys.stderr)

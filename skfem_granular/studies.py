@@ -44,8 +44,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .scene import bundled
+
 STUDIES = ("single-particle", "faxen")
-SCENE = Path(__file__).resolve().parents[1] / "scenes" / "single_particle.toml"
+SCENE = bundled("single_particle")
 FAXEN = {"box": (-3.0, -1.0, 3.0, 1.0), "a": 0.2, "l": 1.0}
 COLUMNS = ("key", "family", "kind", "n_sides", "h", "delta_l", "sigma", "dt", "seed",
            "vertices", "p2_nodes", "dofs", "wall_time", "wall_meshing", "wall_assembly",

@@ -118,3 +118,106 @@ class StepController:
         if not accepted:
             factor = min(factor, 0.9)
         return accepted, float(min(self.dt_max, max(self.dt_min, dt * factor)))
+
+
+class StepFailedError(RuntimeError):
+    """No step size was accepted by :func:`accept_step`.
+
+    Attributes
+    ----------
+    reason : {"halvings", "rejections"}
+        The solve kept failing, or the error control kept rejecting.
+    step : float
+        The last step size tried.
+    error : float or None
+        Its local error estimate (rejections).
+    halvings, rejections : int
+        Counts of this call.
+    """
+
+    def __init__(self, reason: str, step: float, error, halvings: int, rejections: int):
+        super().__init__(f"step not accepted ({reason}) down to dt={step:.3g}")
+        self.reason, self.step, self.error = reason, step, error
+        self.halvings, self.rejections = halvings, rejections
+
+
+@dataclass
+class AcceptedStep:
+    """What :func:`accept_step` returns: the result and how it was reached."""
+
+    result: object
+    step: float
+    error: float | None
+    proposal: float | None
+    halvings: int
+    rejections: int
+
+
+def accept_step(attempt, step: float, *, failure=ArithmeticError, max_halvings: int,
+                controller: StepController | None = None, estimate=None,
+                max_rejections: int = 0, undo=None, dt_min: float | None = None) -> AcceptedStep:
+    """Try steps until one is accepted: halve on solver failure, retry on rejection.
+
+    The one step-acceptance loop of the package (fluid-only and coupled runs).
+
+    Parameters
+    ----------
+    attempt : callable
+        ``attempt(step) -> result``; raises ``failure`` when its solve fails.
+    step : float
+        The first step size to try.
+    failure : type or tuple of types
+        Exceptions that mean "retry with half the step".
+    max_halvings : int
+        Halvings allowed per try; one more failure raises :class:`StepFailedError`.
+    controller : StepController, optional
+        Error control; without it the first converged step is accepted.
+    estimate : callable
+        ``estimate(result, step) -> float or None``: the scaled local error
+        (``None``: no estimate, the step is accepted as it is).
+    max_rejections : int
+        Rejections by the error control allowed before giving up.
+    undo : callable, optional
+        Called after every failed or rejected attempt (restore state the
+        attempt changed).
+    dt_min : float, optional
+        Smallest step (default ``controller.dt_min``, or 0 without a controller).
+
+    Returns
+    -------
+    AcceptedStep
+
+    Raises
+    ------
+    StepFailedError
+        After ``max_halvings`` halvings of one try (or a failure at
+        ``controller.dt_min``), or more than ``max_rejections`` rejections (or a
+        rejection at ``dt_min``); chained to the last solver failure.
+    """
+    if dt_min is None:
+        dt_min = 0.0 if controller is None else controller.dt_min
+    halvings = rejections = 0
+    while True:
+        for k in range(max_halvings + 1):
+            try:
+                result = attempt(step)
+                break
+            except failure as exc:
+                if undo is not None:
+                    undo()
+                if k == max_halvings or step <= dt_min:
+                    raise StepFailedError("halvings", step, None, halvings, rejections) from exc
+                halvings += 1
+                step = max(0.5 * step, dt_min)
+        if controller is None:
+            return AcceptedStep(result, step, None, None, halvings, rejections)
+        err = estimate(result, step)
+        accepted, proposal = (True, step) if err is None else controller.propose(step, err)
+        if accepted:
+            return AcceptedStep(result, step, err, proposal, halvings, rejections)
+        if undo is not None:
+            undo()
+        rejections += 1
+        if rejections > max_rejections or step <= dt_min:
+            raise StepFailedError("rejections", step, err, halvings, rejections)
+        step = proposal

@@ -1,15 +1,14 @@
 """Checkpoints: a resumed run reproduces an uninterrupted one bit for bit."""
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from skfem_granular.scene import Scene, TimeSpec
+from skfem_granular.scene import Scene, TimeSpec, bundled
 from skfem_granular.simulation import Simulation
 
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
+SCENES = bundled("single_particle").parent  # the bundled scenes (skfem_granular/scene/library)
 COLUMNS = ("t", "dt", "iterations", "x", "y", "angle", "vx", "vy", "omega", "Fx", "Fy", "torque")
 
 
@@ -43,7 +42,7 @@ def test_resume_single_particle_bit_for_bit(tmp_path):
     assert np.array_equal(full.last_good.u_prev, resumed.last_good.u_prev)  # BDF2 history
     # the series continues: every frame time of the full run is in the resumed series
     # (which also has the frame the first part wrote at its end)
-    from skfem_granular.render import read_pvd
+    from skfem_granular.viz import read_pvd
 
     t_full = {t for t, _ in read_pvd(tmp_path / "full" / "flow.pvd")}
     t_part = {t for t, _ in read_pvd(tmp_path / "part" / "flow.pvd")}
@@ -106,7 +105,7 @@ def test_resume_adaptive_run_bit_for_bit(tmp_path):
     part = Simulation(replace(scene, time=replace(scene.time, t_end=2e-4), checkpoint_every=8),
                       output_dir=tmp_path / "part")
     part.run(progress=False)  # writes checkpoints at 8, 16, ... steps; resume the last
-    from skfem_granular import checkpoint
+    from skfem_granular.simulation import checkpoint
 
     k = checkpoint.load(tmp_path / "part")["k"]
     assert 0 < k < len(h_full)  # the resumed run takes steps of its own (measured 16 of 23)

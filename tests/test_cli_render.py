@@ -1,13 +1,12 @@
 """`skfem-granular render`: a PNG of a run's last frame from the command line."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from skfem_granular.cli import main
+from skfem_granular.scene import bundled
 
-SCENE = Path(__file__).resolve().parents[1] / "scenes" / "single_particle.toml"
+SCENE = bundled("single_particle")
 
 
 def test_render_png_of_last_frame(tmp_path, capsys):

@@ -5,8 +5,8 @@ import pytest
 from helpers import annulus, box, regular_polygon
 
 import skfem_granular as sg
-from skfem_granular.coupling import MonolithicCoupling
-from skfem_granular.coupling_partitioned import PartitionedCoupling
+from skfem_granular.coupled import MonolithicCoupling
+from skfem_granular.coupled import PartitionedCoupling
 from skfem_granular.fluid import ConvergenceError
 
 A_IN, B_OUT, G = 1e-3, 2e-3, 9.81

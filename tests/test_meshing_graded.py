@@ -24,9 +24,13 @@ def chord(n, r=R0):
 
 
 @pytest.fixture(scope="module")
-def paper():
-    disk = regular(24)
-    return disk, meshing.graded_mesh(BOX, [disk])
+def paper_value():
+    return meshing.build("graded", BOX, [regular(24)])
+
+
+@pytest.fixture(scope="module")
+def paper(paper_value):
+    return regular(24), paper_value.mesh
 
 
 def raw_layout(P, sigma=None):
@@ -38,13 +42,14 @@ def raw_layout(P, sigma=None):
     return pslg.Layout(D, names, [P], wall, wall_edge, free), sizing, ring
 
 
-def assert_quality(mesh, outlines):
+def assert_quality(value, outlines):
+    mesh = value.mesh
     s = meshing.mesh_stats(mesh)
     assert s.min_angle >= 20.0
     assert s.max_aspect <= 3.0
     assert s.n_inverted == 0
     for k, P in enumerate(outlines):
-        idx = mesh.particle_nodes[k]
+        idx = value.particle_nodes[k]
         np.testing.assert_array_equal(mesh.p[:, idx], P)
         f = np.sort(mesh.facets[:, mesh.boundaries[f"particle{k}"]], axis=0)
         e = np.sort(np.vstack([idx, np.roll(idx, -1)]), axis=0)
@@ -100,9 +105,9 @@ def test_every_second_circle_is_staggered_by_half_a_spacing():
         np.testing.assert_allclose(d, 0.0, atol=1e-12)
 
 
-def test_paper_box_quality_and_boundaries(paper):
+def test_paper_box_quality_and_boundaries(paper, paper_value):
     disk, mesh = paper
-    assert_quality(mesh, [disk])
+    assert_quality(paper_value, [disk])
     b = mesh.boundaries
     assert set(b) == {"wall", "left", "right", "bottom", "top", "particle0"}
     np.testing.assert_array_equal(b["wall"], np.sort(np.concatenate(
@@ -205,15 +210,15 @@ def test_deterministic():
 
 def test_delta_l_subdivides_straight_edges():
     sq = regular(4, r=0.5e-3, rot=0.3)
-    mesh = meshing.graded_mesh(BOX, [sq], delta_l=0.1e-3)
-    nodes = mesh.p[:, mesh.particle_nodes[0]]
+    value = meshing.build("graded", BOX, [sq], delta_l=0.1e-3)
+    nodes = value.mesh.p[:, value.particle_nodes[0]]
     assert nodes.shape[1] == 4 * int(np.ceil(chord(4) / 0.1e-3))
     seg = np.hypot(*(np.roll(nodes, -1, axis=1) - nodes))
     assert seg.max() <= 0.1e-3
     # subdivision nodes lie on the square's edges
     d, _ = geometry.edge_distance(sq, nodes)
     np.testing.assert_allclose(d, 0.0, atol=1e-15)
-    assert_quality(mesh, [geometry.subdivide(sq, 0.1e-3)])
+    assert_quality(value, [geometry.subdivide(sq, 0.1e-3)])
 
 
 CASES = {
@@ -235,10 +240,10 @@ CASES = {
 @pytest.mark.parametrize("name", list(CASES))
 def test_quality_bounds(name):
     domain, parts, kw = CASES[name]
-    mesh = meshing.graded_mesh(domain, parts, **kw)
-    assert_quality(mesh, [geometry.subdivide(P, kw.get("delta_l")) for P in parts])
+    value = meshing.build("graded", domain, parts, **kw)
+    assert_quality(value, [geometry.subdivide(P, kw.get("delta_l")) for P in parts])
     D, _ = geometry.as_domain(domain)
-    assert np.all(geometry.edge_distance(D, mesh.p)[0] >= -1e-15)
+    assert np.all(geometry.edge_distance(D, value.mesh.p)[0] >= -1e-15)
 
 
 @settings(max_examples=30, deadline=None)
@@ -252,7 +257,7 @@ def test_quality_bounds_random_placement(n, r, u, v, rot, g, sigma):
     P = regular(n, r, c, rot)
     if not np.all(geometry.inside(geometry.as_domain(BOX)[0], P)):
         return
-    assert_quality(meshing.graded_mesh(BOX, [P], sigma=sigma), [P])
+    assert_quality(meshing.build("graded", BOX, [P], sigma=sigma), [P])
 
 
 @pytest.mark.parametrize("n", [10, 24])
@@ -261,10 +266,11 @@ def test_near_contact_still_gives_a_valid_mesh(n):
     outline is not split), but the mesh stays valid and complete."""
     r = 0.5e-3
     P = regular(n, r, (r + 0.02 * chord(n, r), r + 0.02 * chord(n, r)))
-    mesh = meshing.graded_mesh(BOX, [P])
+    value = meshing.build("graded", BOX, [P])
+    mesh = value.mesh
     s = meshing.mesh_stats(mesh)
     assert s.n_inverted == 0 and s.min_angle > 0.0
-    np.testing.assert_array_equal(mesh.p[:, mesh.particle_nodes[0]], P)
+    np.testing.assert_array_equal(mesh.p[:, value.particle_nodes[0]], P)
     assert mesh.boundaries["particle0"].size == n
     np.testing.assert_array_equal(np.sort(mesh.boundary_facets()), np.sort(np.concatenate(
         [mesh.boundaries["wall"], mesh.boundaries["particle0"]])))

@@ -23,7 +23,7 @@ def lattice(nx, ny, c, pitch=0.5e-3, r=0.2e-3, n=12, seed=0):
 @pytest.fixture(scope="module")
 def hundred():
     parts = lattice(10, 10, (5e-3, 7.75e-3))
-    return parts, meshing.group_mesh(BOX, parts)
+    return parts, meshing.build("group", BOX, parts)
 
 
 def check_conforming(mesh, center, radius):
@@ -69,7 +69,8 @@ def check_conforming(mesh, center, radius):
 
 
 def test_hundred_particles_conforming_and_quality(hundred):
-    parts, mesh = hundred
+    parts, value = hundred
+    mesh = value.mesh
     c = np.mean([p.mean(axis=1) for p in parts], axis=0)
     radius = max(np.max(np.hypot(*(p - c[:, None]))) for p in parts) + 2 * 2 * 0.2e-3 * np.sin(
         np.pi / 12)
@@ -80,7 +81,7 @@ def test_hundred_particles_conforming_and_quality(hundred):
     assert s.min_angle >= 20.0 and s.max_aspect <= 3.0 and s.n_inverted == 0
     assert {f"particle{k}" for k in range(100)} <= set(mesh.boundaries)
     for k, P in enumerate(parts):
-        np.testing.assert_array_equal(mesh.p[:, mesh.particle_nodes[k]], P)
+        np.testing.assert_array_equal(mesh.p[:, value.particle_nodes[k]], P)
         assert mesh.boundaries[f"particle{k}"].size == 12
 
 
@@ -127,7 +128,8 @@ def test_single_particle_group_and_sigma(sigma):
 
 
 def test_faster_growth_means_fewer_graded_nodes(hundred):
-    parts, mesh = hundred
+    parts, value = hundred
+    mesh = value.mesh
     slow = meshing.group_mesh(BOX, parts, sigma=1.05)
     n_slow = np.unique(slow.t[:, slow.subdomains["graded"]]).size
     n_fast = np.unique(mesh.t[:, mesh.subdomains["graded"]]).size

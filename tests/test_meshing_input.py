@@ -96,7 +96,7 @@ def test_group_bad_radius_and_center():
 
 
 def test_remesh_bad_input():
-    mesh = meshing.graded_mesh(BOX, [DISK])
+    mesh = meshing.build("graded", BOX, [DISK])
     with pytest.raises(ValueError, match=r"particles: expected 1 outlines"):
         meshing.remesh(mesh, [DISK, regular(12, 0.2e-3, (1.5e-3, 2e-3))])
     with pytest.raises(ValueError, match=r"particles\[0\]: expected 24 vertices"):
@@ -108,3 +108,16 @@ def test_remesh_bad_input():
         meshing.remesh_needed(mesh, min_angle=70.0)
     with pytest.raises(ValueError, match=r"max_aspect: must be > 1"):
         meshing.remesh_needed(mesh, max_aspect=0.5)
+
+
+def test_build_and_value_bad_input():
+    with pytest.raises(ValueError, match=r"kind: expected one of 'graded', 'uniform', 'group'"):
+        meshing.build("fine", BOX, [DISK])
+    with pytest.raises(TypeError, match=r"options: 'h' not accepted by kind 'graded'"):
+        meshing.build("graded", BOX, [DISK], h=1e-4)
+    plain = meshing.graded_mesh(BOX, [DISK])
+    with pytest.raises(ValueError, match=r"mesh: has no meshing_recipe \(got a bare skfem"):
+        meshing.move_particles(plain, [DISK])
+    unknown = meshing.BodyFittedMesh(plain, None, ())
+    with pytest.raises(ValueError, match=r"mesh: has no meshing_recipe \(got a BodyFitted"):
+        meshing.remesh(unknown, [DISK])

@@ -20,9 +20,13 @@ def edge_lengths(mesh):
 
 
 @pytest.fixture(scope="module")
-def fine24():
-    disk = regular(24)
-    return disk, meshing.uniform_mesh(BOX, [disk])
+def fine24_value():
+    return meshing.build("uniform", BOX, [regular(24)])
+
+
+@pytest.fixture(scope="module")
+def fine24(fine24_value):
+    return regular(24), fine24_value.mesh
 
 
 def test_p2_count_matches_paper_with_24_segments(fine24):
@@ -37,7 +41,7 @@ def test_vertex_count_matches_paper_with_48_segments():
     assert abs(s.n_vertices - PAPER_FINE_NODES) <= 0.15 * PAPER_FINE_NODES
 
 
-def test_mean_edge_is_h_and_quality(fine24):
+def test_mean_edge_is_h_and_quality(fine24, fine24_value):
     disk, mesh = fine24
     h = 2 * 0.5e-3 * np.sin(np.pi / 24)
     L = edge_lengths(mesh)
@@ -45,7 +49,7 @@ def test_mean_edge_is_h_and_quality(fine24):
     s = meshing.mesh_stats(mesh)
     assert s.min_angle >= 30.0 - 1e-9
     assert s.max_aspect <= 3.0 and s.n_inverted == 0
-    np.testing.assert_array_equal(mesh.p[:, mesh.particle_nodes[0]], disk)
+    np.testing.assert_array_equal(mesh.p[:, fine24_value.particle_nodes[0]], disk)
 
 
 def test_boundaries_follow_segment_markers(fine24):

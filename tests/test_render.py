@@ -1,6 +1,6 @@
-"""Off-screen pictures of a run (skfem_granular.render): PNG frames and a GIF.
+"""Off-screen pictures of a run (skfem_granular.viz): PNG frames and a GIF.
 
-One tiny run of scenes/single_particle.toml (3 steps, frames at 0, 2e-5 and
+One tiny run of the bundled single_particle.toml (3 steps, frames at 0, 2e-5 and
 3e-5 s) feeds all tests. The checks are on pixels: size, contrast, the
 colour map's high end next to the particle, its low end far from it, the
 white background, the black core outline along the particle's polygon and
@@ -13,14 +13,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skfem_granular import render
+from skfem_granular import viz
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _pyvista_missing() -> str | None:
     try:
-        render._pyvista()
+        viz.require_pyvista()
     except ImportError as exc:
         return str(exc)
     except RuntimeError:
@@ -37,7 +37,7 @@ def run_dir(tmp_path_factory):
     from skfem_granular.scene import Scene
     from skfem_granular.simulation import Simulation
 
-    scene = Scene.from_toml(ROOT / "scenes" / "single_particle.toml")
+    scene = Scene.bundled("single_particle")
     scene = replace(scene, time=replace(scene.time, t_end=3e-5), vtu_every=2)
     out = tmp_path_factory.mktemp("run")
     Simulation(scene, output_dir=out).run(progress=False)
@@ -67,7 +67,7 @@ def test_speed_png(run_dir, tmp_path):
     from PIL import Image
 
     flow, parts = run_dir / "flow_00002.vtu", run_dir / "particles_00002.vtu"
-    pic = render.render_frame(
+    pic = viz.render_frame(
         flow, parts, tmp_path / "speed.png", field="speed", window_size=(400, 800), time=3e-5
     )
     with Image.open(tmp_path / "speed.png") as png:
@@ -83,7 +83,7 @@ def test_speed_png(run_dir, tmp_path):
     V, outline = _core(parts)
     center = V.mean(axis=0)
     # the black core outline along the whole polygon, grey inside
-    assert all(_near(image, pic.pixel(*x), render.CORE_EDGE, 60) for x in outline)
+    assert all(_near(image, pic.pixel(*x), viz.CORE_EDGE, 60) for x in outline)
     assert _near(image, pic.pixel(*center), (200, 200, 200), 10, reach=0)
     # the colour map's high end within 0.1 mm of the particle (at its sides)
     ring = [
@@ -103,9 +103,9 @@ def test_speed_png(run_dir, tmp_path):
 @needs_pyvista
 def test_mesh_glyphs_streamlines_zoom(run_dir):
     flow, parts = run_dir / "flow_00002.vtu", run_dir / "particles_00002.vtu"
-    edge = tuple(int(render.MESH_EDGE[i : i + 2], 16) for i in (1, 3, 5))
+    edge = tuple(int(viz.MESH_EDGE[i : i + 2], 16) for i in (1, 3, 5))
 
-    mesh = render.render_frame(flow, parts, field="mesh")
+    mesh = viz.render_frame(flow, parts, field="mesh")
     assert mesh.clim is None and mesh.path is None
     close = np.max(np.abs(mesh.image.astype(int) - edge), axis=-1) <= 40
     assert close.sum() > 1000  # the triangle edges
@@ -113,13 +113,13 @@ def test_mesh_glyphs_streamlines_zoom(run_dir):
     box = (0.7e-3, 4.7e-3, 2.3e-3, 6.3e-3)
     dark = {}
     for vectors in (None, "glyphs", "streamlines"):
-        pic = render.render_frame(
+        pic = viz.render_frame(
             flow, parts, field="pressure", vectors=vectors, box=box, window_size=(450, 300)
         )
         assert pic.image.shape == (300, 450, 3) and pic.box == box
         # the zoom: the particle (1 mm across) spans about 5/8 of the plot height
         _, outline = _core(parts)
-        assert all(_near(pic.image, pic.pixel(*x), render.CORE_EDGE, 60) for x in outline)
+        assert all(_near(pic.image, pic.pixel(*x), viz.CORE_EDGE, 60) for x in outline)
         # black pixels in the fluid right of the particle (0.05 mm and more
         # from its outline): arrows or lines
         r0, c0 = pic.pixel(2.05e-3, 6.0e-3)
@@ -134,7 +134,7 @@ def test_mesh_glyphs_streamlines_zoom(run_dir):
 def test_gif(run_dir, tmp_path):
     from PIL import Image, ImageSequence
 
-    path = render.render_series(run_dir, tmp_path / "run.gif", field="vorticity")
+    path = viz.render_series(run_dir, tmp_path / "run.gif", field="vorticity")
     assert path == tmp_path / "run.gif"
     with Image.open(path) as gif:
         assert gif.n_frames == 3
@@ -144,32 +144,32 @@ def test_gif(run_dir, tmp_path):
     # one colour range for all frames: the fluid at rest at t = 0 is the
     # colour of zero (white in RdBu_r); later frames are not
     assert np.abs(frames[2] - frames[1]).mean() > 0.1
-    with Image.open(render.render_series(run_dir, tmp_path / "two.gif", every=2)) as gif:
+    with Image.open(viz.render_series(run_dir, tmp_path / "two.gif", every=2)) as gif:
         assert gif.n_frames == 2
 
 
 def test_bad_input(run_dir, tmp_path, monkeypatch):
     flow = run_dir / "flow_00000.vtu"
     with pytest.raises(ValueError, match="field"):
-        render.render_frame(flow, field="temperature")
+        viz.render_frame(flow, field="temperature")
     with pytest.raises(ValueError, match="vectors"):
-        render.render_frame(flow, vectors="arrows")
+        viz.render_frame(flow, vectors="arrows")
     with pytest.raises(ValueError, match="every"):
-        render.render_series(run_dir, tmp_path / "a.gif", every=0)
+        viz.render_series(run_dir, tmp_path / "a.gif", every=0)
     with pytest.raises(ValueError, match=r"\.gif or \.mp4"):
-        render.render_series(run_dir, tmp_path / "a.avi")
+        viz.render_series(run_dir, tmp_path / "a.avi")
     with pytest.raises(ValueError, match="not found"):
-        render.render_series(tmp_path, tmp_path / "a.gif")
+        viz.render_series(tmp_path, tmp_path / "a.gif")
     monkeypatch.setitem(__import__("sys").modules, "pyvista", None)
     with pytest.raises(ImportError, match=r"pip install 'skfem-granular\[plot\]'"):
-        render.render_frame(flow)
+        viz.render_frame(flow)
 
 
 @needs_pyvista
 def test_bad_files(run_dir, tmp_path):
     with pytest.raises(ValueError, match="not found"):
-        render.render_frame(tmp_path / "nothing.vtu")
+        viz.render_frame(tmp_path / "nothing.vtu")
     with pytest.raises(ValueError, match=r"\.png"):
-        render.render_frame(run_dir / "flow_00000.vtu", path_png=tmp_path / "a.jpg")
+        viz.render_frame(run_dir / "flow_00000.vtu", path_png=tmp_path / "a.jpg")
     with pytest.raises(ValueError, match="box"):
-        render.render_frame(run_dir / "flow_00000.vtu", box=(1, 1, 0, 2))
+        viz.render_frame(run_dir / "flow_00000.vtu", box=(1, 1, 0, 2))

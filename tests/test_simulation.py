@@ -2,16 +2,15 @@
 
 import json
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from skfem_granular.cli import main
-from skfem_granular.scene import Effects, Scene, TimeSpec
+from skfem_granular.scene import Effects, Scene, TimeSpec, bundled
 from skfem_granular.simulation import Simulation
 
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
+SCENES = bundled("single_particle").parent  # the bundled scenes (skfem_granular/scene/library)
 
 
 def _short(scene, t_end=1e-4, **kw):
@@ -254,7 +253,7 @@ def test_failed_step_is_retried_with_half_the_step(paper, monkeypatch):
 
 
 def test_run_that_cannot_converge_stops_with_history_written(paper, tmp_path):
-    from skfem_granular.coupled_run import MAX_RETRIES, SimulationError
+    from skfem_granular.coupled.stepper import MAX_RETRIES, SimulationError
 
     sim = Simulation(_short(paper, t_end=5e-5), output_dir=tmp_path)
     sim.coupling.max_iterations = 1  # Navier-Stokes cannot converge in one chord step

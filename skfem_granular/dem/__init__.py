@@ -9,7 +9,7 @@ coupling reads outlines and velocities and writes ``external_force``.
 
 from .contact_law import ContactForces, ContactHistory, ContactLaw
 from .integrator import BDF2History, bdf2_coefficients, stable_time_step
-from .output import History, VTUSeries, write_outlines_vtu, write_pvd
+from .output import History, VTUSeries, write_outlines_vtu
 from .particles import Body, Particle
 from .polygon import Polygon
 from .system import DEMSystem
@@ -31,5 +31,4 @@ __all__ = [
     "incline_wall",
     "stable_time_step",
     "write_outlines_vtu",
-    "write_pvd",
 ]

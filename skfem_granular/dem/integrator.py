@@ -22,18 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..timestep import bdf2_coefficients
+
 __all__ = ["BDF2History", "bdf2_coefficients", "correct", "predict", "stable_time_step"]
-
-
-def bdf2_coefficients(dt: float, dt_prev: float) -> tuple[float, float, float]:
-    """Variable-step BDF2 coefficients ``(a0, a1, a2)``.
-
-    ``dy/dt(t_{n+1}) ~ a0 y_{n+1} + a1 y_n + a2 y_{n-1}`` with ``w = dt / dt_prev``:
-    ``a0 = (1 + 2w) / (dt (1 + w))``, ``a1 = -(1 + w) / dt``,
-    ``a2 = w^2 / (dt (1 + w))``.
-    """
-    w = dt / dt_prev
-    return (1 + 2 * w) / (dt * (1 + w)), -(1 + w) / dt, w * w / (dt * (1 + w))
 
 
 def stable_time_step(mass: np.ndarray, E: float, gamma: float = 0.0,

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import csv
 import os
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-__all__ = ["History", "VTUSeries", "write_outlines_vtu", "write_pvd"]
+from ..io.pvd import PVDSeries
+from ..io.table import Table
+
+__all__ = ["History", "VTUSeries", "write_outlines_vtu"]
 
 #: cell-data code of the outline kinds in the VTU files
 KIND = {"shadow": 0, "core": 1, "wall": 2}
@@ -58,23 +59,8 @@ def write_outlines_vtu(path, system) -> None:
     meshio.Mesh(points, cells, cell_data=data).write(str(path))
 
 
-def write_pvd(path, entries) -> None:
-    """Write a ParaView collection ``path`` listing ``(time, filename)`` entries.
-
-    meshio has no writer for this tiny XML index, so it is written here.
-    """
-    lines = ['<?xml version="1.0"?>',
-             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-             "  <Collection>"]
-    for t, name in entries:
-        lines.append(f'    <DataSet timestep="{float(t):.17g}" group="" part="0" '
-                     f"file={quoteattr(str(name))}/>")
-    lines += ["  </Collection>", "</VTKFile>", ""]
-    Path(path).write_text("\n".join(lines))
-
-
 class VTUSeries:
-    """A series of VTU outline files plus a ``.pvd`` index.
+    """A series of VTU outline files plus a ``.pvd`` index (atomic, as every series here).
 
     Parameters
     ----------
@@ -95,15 +81,16 @@ class VTUSeries:
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
         self.name = name
-        self.entries = []
+        self._series = PVDSeries(self.directory / f"{name}.pvd")
+
+    @property
+    def entries(self) -> list[tuple[float, str]]:
+        """``(time, file name)`` of the frames written."""
+        return self._series.frames
 
     def write(self, system) -> Path:
         """Write the current outlines as the next frame and update the index."""
-        fname = f"{self.name}_{len(self.entries):05d}.vtu"
-        write_outlines_vtu(self.directory / fname, system)
-        self.entries.append((system.t, fname))
-        write_pvd(self.directory / f"{self.name}.pvd", self.entries)
-        return self.directory / fname
+        return self._series.write(system.t, lambda f: write_outlines_vtu(f, system))
 
     def __enter__(self):
         return self
@@ -112,7 +99,7 @@ class VTUSeries:
         return False
 
 
-class History:
+class History(Table):
     """Time history of a :class:`~skfem_granular.dem.DEMSystem`.
 
     Call :meth:`record` after steps; read the arrays ``t`` ``(T,)``,
@@ -120,47 +107,39 @@ class History:
     ``contacts`` ``(T, N)``, ``kinetic_energy``/``elastic_energy`` ``(T,)``.
     """
 
-    FIELDS = ("t", "positions", "angles", "velocities", "angular_velocities", "contacts",
-              "kinetic_energy", "elastic_energy")
+    STEP_COLUMNS = ("t", "kinetic_energy", "elastic_energy")
+    PARTICLE_COLUMNS = ("x", "y", "angle", "vx", "vy", "omega", "contacts")
 
     def __init__(self):
-        self._rows = {k: [] for k in self.FIELDS}
+        super().__init__(0)
 
     def record(self, system) -> None:
         """Append the current state of ``system``."""
-        r = self._rows
-        r["t"].append(system.t)
-        r["positions"].append(system.positions.copy())
-        r["angles"].append(system.angles.copy())
-        r["velocities"].append(system.velocities.copy())
-        r["angular_velocities"].append(system.angular_velocities.copy())
-        r["contacts"].append(system.contact_count())
-        r["kinetic_energy"].append(system.kinetic_energy())
-        r["elastic_energy"].append(system.elastic_energy())
+        self.K = system.n
+        self.add_row(t=system.t, kinetic_energy=system.kinetic_energy(),
+                     elastic_energy=system.elastic_energy(), x=system.positions[0],
+                     y=system.positions[1], angle=system.angles, vx=system.velocities[0],
+                     vy=system.velocities[1], omega=system.angular_velocities,
+                     contacts=system.contact_count())
 
-    def __len__(self) -> int:
-        return len(self._rows["t"])
+    @property
+    def positions(self) -> np.ndarray:
+        return np.stack([self.x, self.y], axis=1)
 
-    def __getattr__(self, name):
-        if name in History.FIELDS:
-            return np.array(self._rows[name])
-        raise AttributeError(name)
+    @property
+    def velocities(self) -> np.ndarray:
+        return np.stack([self.vx, self.vy], axis=1)
 
-    def to_csv(self, path) -> None:
+    @property
+    def angles(self) -> np.ndarray:
+        return self.angle
+
+    @property
+    def angular_velocities(self) -> np.ndarray:
+        return self.omega
+
+    def to_csv(self, path, layout: str = "long") -> None:
         """Write one row per (time, particle): ``t, particle, x, y, angle, vx, vy,
         omega, contacts, kinetic_energy, elastic_energy`` (energies are totals)."""
         os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-        with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["t", "particle", "x", "y", "angle", "vx", "vy", "omega",
-                        "contacts", "kinetic_energy", "elastic_energy"])
-            r = self._rows
-            for s, t in enumerate(r["t"]):
-                X, V = r["positions"][s], r["velocities"][s]
-                for k in range(X.shape[1]):
-                    w.writerow([repr(float(t)), k, repr(float(X[0, k])), repr(float(X[1, k])),
-                                repr(float(r["angles"][s][k])), repr(float(V[0, k])),
-                                repr(float(V[1, k])),
-                                repr(float(r["angular_velocities"][s][k])),
-                                int(r["contacts"][s][k]), repr(r["kinetic_energy"][s]),
-                                repr(r["elastic_energy"][s])])
+        super().to_csv(path, layout)

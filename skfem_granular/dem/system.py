@@ -261,6 +261,17 @@ class DEMSystem:
         """Forget the BDF2 history (call after changing positions/velocities by hand)."""
         self.bdf2 = BDF2History()
 
+    def set_motion(self, q: np.ndarray, v: np.ndarray, t: float) -> None:
+        """Impose poses ``q`` and velocities ``v`` (both ``(3, N)``: x, y, angle) at time ``t``.
+
+        For a solver outside the DEM that computed the particles' motion (a coupled
+        fluid-particle step); the DEM's own BDF2 history is forgotten.
+        """
+        self.particles.q[...] = q
+        self.particles.v[...] = v
+        self.t = float(t)
+        self.reset_history()
+
     def step(self, dt: float | None = None) -> None:
         """One BDF2 predictor-corrector step of size ``dt`` (default :attr:`dt`)."""
         dt = self.dt if dt is None else self._check_dt(dt)

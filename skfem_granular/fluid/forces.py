@@ -23,8 +23,12 @@ from skfem.helpers import grad
 from .._validate import finite_vector
 
 
-def _rigid_test(space, dofs: np.ndarray, center) -> np.ndarray:
-    """Values of ``e_z x (x - X)`` at the given velocity DOFs."""
+def rigid_lever(space, dofs: np.ndarray, center) -> np.ndarray:
+    """Values of ``e_z x (x - X)`` at the velocity DOFs ``dofs`` (the rotation's lever arm).
+
+    The x component of a DOF gets ``-(y - Y)``, the y component ``x - X``: a
+    rigid rotation ``omega`` about ``center`` has the DOF values ``omega`` times these.
+    """
     X, Y = finite_vector("center", center)
     locs = space.velocity_doflocs[:, dofs]
     comp = space.component[dofs]
@@ -42,7 +46,7 @@ def consistent_force(space, residual_u: np.ndarray, name: str) -> np.ndarray:
 def consistent_torque(space, residual_u: np.ndarray, name: str, center) -> float:
     """Reaction torque about ``center`` on boundary ``name``."""
     dofs = space.boundary_dofs(name)
-    return -float(residual_u[dofs] @ _rigid_test(space, dofs, center))
+    return -float(residual_u[dofs] @ rigid_lever(space, dofs, center))
 
 
 def _stress_fields(space, fluid, u, p, name):

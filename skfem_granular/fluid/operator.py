@@ -130,6 +130,17 @@ class NavierStokesOperator:
         top = sp.hstack([A, self._Bt], format="csr")
         return sp.vstack([top, self._B_lower], format="csr")
 
+    def reduced_bdf2_system(self, a0: float) -> tuple:
+        """The linear BDF2-Stokes system for ``a0`` on the free DOFs, ready to factorise.
+
+        Returns ``(A_uu, J, nu_free, blocks)``: the velocity block
+        ``a0 rho M + eta K``, the reduced saddle-point matrix, the number of free
+        velocities and the solver blocks (the form
+        :class:`~skfem_granular.fluid.factor_cache.FactorCache` asks for).
+        """
+        A_uu = self.velocity_block(a0)
+        return A_uu, self.reduced(self.matrix(A_uu)), self.nu_free, self.solver_blocks(a0)
+
     def reduced(self, J: sp.spmatrix) -> sp.csr_matrix:
         """Restriction of a full matrix to the free DOFs."""
         J = sp.csr_matrix(J)

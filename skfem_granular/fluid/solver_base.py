@@ -88,7 +88,7 @@ class SaddlePointSolver:
         self.stats.time_solve += time.perf_counter() - t0
         return x
 
-    def _solve_inexact(self, b: np.ndarray) -> np.ndarray:
+    def solve_correction(self, b: np.ndarray) -> np.ndarray:
         """Solve for a correction inside an outer iteration that evaluates the exact residual.
 
         A chord or Newton loop corrects the error of each linear solve itself, so solvers

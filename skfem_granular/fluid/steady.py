@@ -10,6 +10,7 @@ from .boundary import DirichletData
 from .errors import ConvergenceError
 from .flow import Flow, SolveReport
 from .linsolve import make_solver
+from .newton import newton_iterate
 from .operator import NavierStokesOperator
 from .properties import Fluid
 from .space import TaylorHood
@@ -75,7 +76,7 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
         t0 = time.perf_counter()
         lin.factorize(Jr, op.nu_free, **op.solver_blocks())
         # a Newton correction needs no refinement: the loop evaluates the exact residual
-        dx = lin._solve_inexact(-r[free]) if newton else lin.solve(-r[free])
+        dx = lin.solve_correction(-r[free]) if newton else lin.solve(-r[free])
         times["solve"] += time.perf_counter() - t0
         return dx
 
@@ -96,32 +97,39 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
         report.iterations = 1
         report.residuals.append(float(np.linalg.norm(r[free]) / ref))
     else:
-        converged = False
-        for it in range(1, maxiter + 1):
+        known = {"r": r, "failed": False}
+
+        def residual(x):  # the residual stop() evaluated after the last update
+            return known["r"]
+
+        def correction(x, r, it):
             t0 = time.perf_counter()
             # a Stokes matrix for the first step from a zero interior, Newton after
             J = (op.reduced_jacobian(x) if (it > 1 or initial is not None)
                  else op.reduced(op.matrix(op.velocity_block())))
             times["assembly"] += time.perf_counter() - t0
-            dx = linear_solve(J, r, newton=True)
-            x[free] += dx
+            return linear_solve(J, r, newton=True)
+
+        def stop(it, dx, x):
             t0 = time.perf_counter()
-            r = op.residual(x)
+            r = known["r"] = op.residual(x)
             times["assembly"] += time.perf_counter() - t0
             rel = float(np.linalg.norm(r[free]) / ref)
             report.residuals.append(rel)
             step = np.linalg.norm(dx) / max(np.linalg.norm(x[free]), 1e-300)
             if not np.isfinite(rel):
-                break
-            if rel <= tol or step <= tol:
-                converged = True
-                break
-        report.iterations = it
-        if not converged:
+                known["failed"] = True
+                return True
+            return rel <= tol or step <= tol
+
+        it = newton_iterate(x, residual, correction, stop, max_iterations=maxiter, index=free)
+        report.iterations = maxiter if it is None else it
+        if it is None or known["failed"]:
             raise ConvergenceError(
-                f"solve_steady: Newton did not converge in {it} iterations (relative residual "
-                f"{report.residuals[-1]:.2e} > tol {tol:.0e}); the Reynolds number may be too high "
-                f"for this mesh: try continuation (initial=a flow at lower speed) or maxiter")
+                f"solve_steady: Newton did not converge in {report.iterations} iterations "
+                f"(relative residual {report.residuals[-1]:.2e} > tol {tol:.0e}); the Reynolds "
+                f"number may be too high for this mesh: try continuation (initial=a flow at "
+                f"lower speed) or maxiter")
     op.normalize_pressure(x)
     report.solver = lin.stats.as_dict()
     times["total"] = time.perf_counter() - t_start

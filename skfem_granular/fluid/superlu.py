@@ -109,7 +109,7 @@ class SuperLUSolver(SaddlePointSolver):
         self._lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
                              options=dict(SymmetricMode=True))
 
-    def _solve_inexact(self, b):
+    def solve_correction(self, b):
         """One triangular solve with the regularised factors, no refinement.
 
         Its relative error is about the regularisation (~1e-9 with the default ``delta``),

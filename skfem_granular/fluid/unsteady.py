@@ -32,8 +32,10 @@ from .. import timestep as ts
 from .._validate import positive
 from .boundary import DirichletData
 from .errors import ConvergenceError
+from .factor_cache import FactorCache
 from .flow import Flow, SolveReport
 from .linsolve import make_solver
+from .newton import newton_iterate
 from .operator import NavierStokesOperator
 from .steady import as_space
 
@@ -99,7 +101,6 @@ class BDF2Integrator:
         self.newton_tol = positive("newton_tol", newton_tol)
         self.max_iterations = int(max_iterations)
         self.solver = make_solver(solver, self.op.free.size)
-        self._a0 = None
         self.t = float(t0)
         nu = self.space.nu
         self.x = np.zeros(self.space.N)
@@ -115,6 +116,7 @@ class BDF2Integrator:
             velocity_scale = float(np.abs(vals).max()) if vals.size else 0.0
         self.velocity_scale = max(float(velocity_scale), 1e-12)
         self.timings = {"assembly": 0.0, "factorization": 0.0, "solve": 0.0}
+        self.factors = FactorCache(self.solver, self.op.reduced_bdf2_system, self.timings)
 
     def _initial_velocity(self, u0) -> np.ndarray:
         sp_ = self.space
@@ -131,27 +133,13 @@ class BDF2Integrator:
         return val
 
     # linear algebra ---------------------------------------------------------------
-    def _operator(self, a0: float):
-        """Factorise the BDF2-Stokes operator for ``a0`` (cached)."""
-        if self._a0 != a0:
-            t0 = time.perf_counter()
-            self._A_uu = self.op.velocity_block(a0)
-            J = self.op.reduced(self.op.matrix(self._A_uu))
-            t1 = time.perf_counter()
-            blocks = self.op.solver_blocks(a0)
-            self.solver.factorize(J, self.op.nu_free, **blocks)
-            self.timings["assembly"] += t1 - t0
-            self.timings["factorization"] += time.perf_counter() - t1
-            self._a0 = a0
-        return self._A_uu
-
     def _gmres_correction(self, x, r_free, a0):
         """Solve the exact Newton system matrix-free, preconditioned by the chord operator."""
         op, sp_ = self.op, self.space
         free = op.free
         rho = self.fluid.density
         u = x[: sp_.nu]
-        A_uu = self._A_uu
+        A_uu = self.factors.A_uu
 
         def matvec(v):
             full = np.zeros(sp_.N)
@@ -199,54 +187,66 @@ class BDF2Integrator:
         t0 = time.perf_counter()
         rhs_u = -rho * (sp_.M @ hist)
         t_op = time.perf_counter()
-        A_uu = self._operator(a0)
-        t0 += time.perf_counter() - t_op  # _operator books its assembly and factorisation
+        A_uu = self.factors.operator(a0)
+        t0 += time.perf_counter() - t_op  # the cache books its assembly and factorisation
         u_pred = ts.predict(u_n, self.du, self.du_prev, dt, self.dt_prev)
         x = self.x.copy()
         x[:nu] = u_pred
         op.apply_dirichlet(x, self.t + dt)
         free = op.free
-        scale = max(float(np.abs(u_n).max()), self.velocity_scale)
-        used_gmres = False
-        prev_norm = None
         self.timings["assembly"] += time.perf_counter() - t0
-        for it in range(1, self.max_iterations + 1):  # noqa: B007 (returned)
+        # Navier-Stokes: the chord loop re-evaluates the exact residual, so the correction
+        # needs no refinement (same iterates to ~1e-13, 2x fewer triangular solves); Stokes
+        # steps stop after one exact solve
+        solve = self.solver.solve_correction if op.convection else self.solver.solve
+        it_state = {"scale": max(float(np.abs(u_n).max()), self.velocity_scale),
+                    "gmres": False, "prev": None, "dnorm": math.nan}
+
+        def residual(x):
             t0 = time.perf_counter()
             r = op.residual(x, rhs_u=rhs_u, A_uu=A_uu)
+            self.timings["assembly"] += time.perf_counter() - t0
+            return r
+
+        def correction(x, r, it):
             t1 = time.perf_counter()
-            if used_gmres:
-                dx, ok = self._gmres_correction(x, r[free], a0)
+            if it_state["gmres"]:
+                dx, _ = self._gmres_correction(x, r[free], a0)
             else:
-                # Navier-Stokes: the chord loop re-evaluates the exact residual, so the
-                # correction needs no refinement (same iterates to ~1e-13, 2x fewer
-                # triangular solves); Stokes steps stop after one exact solve
-                solve = self.solver._solve_inexact if op.convection else self.solver.solve
                 dx = -solve(r[free])
-            x[free] += dx
-            self.timings["assembly"] += t1 - t0
             self.timings["solve"] += time.perf_counter() - t1
+            return dx
+
+        def stop(it, dx, x):
             if not op.convection:
-                break
+                return True
             dnorm = float(np.abs(dx[: op.nu_free]).max())
+            it_state["dnorm"] = dnorm
             if not math.isfinite(dnorm):
                 raise ConvergenceError(f"BDF2 step dt={dt:.3e}: corrector produced NaN")
             # a flow starting from rest has no velocity scale yet: use the iterate's
-            scale = max(scale, float(np.abs(x[:nu]).max()))
+            scale = it_state["scale"] = max(it_state["scale"], float(np.abs(x[:nu]).max()))
             if dnorm <= self.newton_tol * scale:
-                break
-            if prev_norm is not None and not used_gmres:
+                return True
+            prev = it_state["prev"]
+            if prev is not None and not it_state["gmres"]:
                 # chord iterations contract linearly: switch to Newton-GMRES when
                 # more than three further chord iterations would be needed
-                rate = dnorm / prev_norm
+                rate = dnorm / prev
                 target = self.newton_tol * scale / dnorm
                 if rate >= 1.0 or math.log(target) / math.log(max(rate, 1e-300)) > 3.0:
-                    used_gmres = True
-            prev_norm = dnorm
-        else:
+                    it_state["gmres"] = True
+            it_state["prev"] = dnorm
+            return False
+
+        it = newton_iterate(x, residual, correction, stop, max_iterations=self.max_iterations,
+                            index=free)
+        if it is None:
             raise ConvergenceError(
                 f"BDF2 step at t={self.t:.6g}, dt={dt:.3e}: corrector did not converge in "
-                f"{self.max_iterations} iterations (update {dnorm:.2e} > {self.newton_tol:.0e} "
-                f"x velocity scale {scale:.2e})")
+                f"{self.max_iterations} iterations (update {it_state['dnorm']:.2e} > "
+                f"{self.newton_tol:.0e} x velocity scale {it_state['scale']:.2e})")
+        used_gmres = it_state["gmres"]
         self._last_rhs = rhs_u
         err = None
         if self.dt_prev is not None and self.scheme == "bdf2":
@@ -270,7 +270,7 @@ class BDF2Integrator:
         """The current state as a :class:`Flow` (forces include the fluid inertia)."""
         op = self.op
         x = op.normalize_pressure(self.x.copy())
-        A_uu, rhs = self._A_uu, self._last_rhs
+        A_uu, rhs = self.factors.A_uu, self._last_rhs
 
         def residual_u(xx):
             return op.residual(xx, rhs_u=rhs, A_uu=A_uu)[: self.space.nu]
@@ -301,7 +301,8 @@ def evolve(mesh, fluid, velocity: dict, *, dt: float, t_end: float, adaptive: bo
     dt_min, dt_max : float
         Step bounds (``dt_min`` default ``1e-6 dt``).
     max_rejections : int
-        Rejected attempts allowed in a row before giving up.
+        Rejected attempts allowed in a row before giving up, and halvings
+        of one attempt after a corrector failure (:func:`~skfem_granular.timestep.accept_step`).
     **options
         Passed to :class:`BDF2Integrator` (``convection``, ``u0``, ``t0``,
         ``body_force``, ``solver``, ...).
@@ -320,34 +321,30 @@ def evolve(mesh, fluid, velocity: dict, *, dt: float, t_end: float, adaptive: bo
                              dt_min=dt * 1e-6 if dt_min is None else dt_min)
     eps = 1e-12 * max(t_end, dt)
     while integ.t < t_end - eps:
-        rejected = 0
-        while True:
-            remaining = t_end - integ.t
-            # land on t_end exactly; keep dt (and the factorisation) when only rounding differs
-            step = dt if abs(remaining - dt) <= 1e-9 * dt or remaining > dt else remaining
-            if integ.dt_prev is not None:
-                step = min(step, max_ratio * integ.dt_prev)
-            t0 = time.perf_counter()
-            try:
-                x, its, err, gm = integ.try_step(step)
-            except ConvergenceError:
-                if rejected >= max_rejections or step <= ctrl.dt_min:
-                    raise
-                rejected += 1
-                dt = max(step * 0.5, ctrl.dt_min)
-                continue
-            if adaptive and err is not None:
-                ok, dt_next = ctrl.propose(step, err)
-                if not ok:
-                    rejected += 1
-                    if rejected > max_rejections or step <= ctrl.dt_min:
-                        raise ConvergenceError(
-                            f"evolve: {rejected} rejected steps in a row at t={integ.t:.6g} "
-                            f"(dt={step:.3e}, error {err:.2e} > tol {tol:.0e})")
-                    dt = dt_next
-                    continue
-                dt = dt_next
-            break
+        remaining = t_end - integ.t
+        # land on t_end exactly; keep dt (and the factorisation) when only rounding differs
+        step = dt if abs(remaining - dt) <= 1e-9 * dt or remaining > dt else remaining
+        if integ.dt_prev is not None:
+            step = min(step, max_ratio * integ.dt_prev)
+        t0 = time.perf_counter()
+        try:
+            acc = ts.accept_step(integ.try_step, step, failure=ConvergenceError,
+                                 max_halvings=max_rejections, dt_min=ctrl.dt_min,
+                                 controller=ctrl if adaptive else None,
+                                 estimate=lambda res, step: res[2],
+                                 max_rejections=max_rejections)
+        except ts.StepFailedError as exc:
+            if exc.reason == "halvings":
+                raise exc.__cause__ from None
+            raise ConvergenceError(
+                f"evolve: {exc.rejections} rejected steps in a row at t={integ.t:.6g} "
+                f"(dt={exc.step:.3e}, error {exc.error:.2e} > tol {tol:.0e})") from None
+        x, its, err, gm = acc.result
+        step, rejected = acc.step, acc.halvings + acc.rejections
+        if adaptive and err is not None:
+            dt = acc.proposal
+        elif acc.halvings:
+            dt = step  # a halved step stays halved
         integ.commit(x, step)
         if abs(integ.t - t_end) <= eps:
             integ.t = float(t_end)

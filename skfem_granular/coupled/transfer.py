@@ -1,7 +1,7 @@
 """Moving particles on a fixed mesh: when to remesh, and moving fields onto a new mesh.
 
 Between remeshes the fluid mesh keeps the particle outlines where they were
-when it was built (see :mod:`skfem_granular.coupling`). :func:`lag` measures
+when it was built (see :mod:`skfem_granular.coupled.monolithic`). :func:`lag` measures
 how far each particle's material outline has moved since then;
 :func:`transfer` interpolates P2 velocities (and P1 pressures) onto the nodes
 of a new mesh. New nodes in the region a particle has vacated lie just
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fluid.points import PointLocator, evaluation_matrix
+from ..fluid.points import PointLocator, evaluation_matrix
 
 
 def lag(centers_ref: np.ndarray, angles_ref: np.ndarray, centers: np.ndarray,

@@ -1,13 +1,15 @@
 """Drawing layers of a rendered frame: field, mesh, arrows, streamlines, outlines.
 
-Helpers of :mod:`skfem_granular.render` (pyvista objects in, pyvista actors
-out); the colours and sizes every picture shares are defined here.
+:func:`draw` adds the actors of one frame to a pyvista plotter (pyvista
+objects in, pyvista actors out); the colours and the pixel sizes of the
+layout that every picture shares are defined here.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+# field name -> (colormap, unit, symmetric colour range, colour of arrows and streamlines)
 FIELDS = {
     "speed": ("viridis", "m/s", False, "white"),
     "pressure": ("coolwarm", "Pa", True, "black"),
@@ -22,9 +24,9 @@ SHADOW_EDGE = (230, 120, 0)
 WALL_FILL = "#8c8c8c"
 MESH_EDGE = "#2b5d9b"
 
-_PAD = 12  # pixels around the plot area
-_TITLE = 36  # pixels above it for the title
-_BAR = 150  # pixels right of it for the colour bar
+PAD = 12  # pixels around the plot area
+TITLE = 36  # pixels above it for the title
+BAR = 150  # pixels right of it for the colour bar
 
 
 def _grid(box, density: int, pv, flow):
@@ -41,12 +43,15 @@ def _grid(box, density: int, pv, flow):
     return sampled.extract_points(keep, adjacent_cells=False), h
 
 
-
-
-def _draw(
+def draw(
     pl, pv, flow, particles, *, field, vectors, density, box, clim, arrow_scale, edges, title, z
 ):
-    """Add the actors of one frame to the plotter ``pl``."""
+    """Add the actors of one frame to the plotter ``pl``.
+
+    ``z`` holds five small increasing z offsets (mesh edges, vectors,
+    particle cores, shadow outlines, core outlines) that keep the overlays
+    in front of the field.
+    """
     cmap, unit, _, ink = FIELDS[field]
     surface = _surface(pv, flow)
     if field == "mesh":
@@ -90,9 +95,9 @@ def _draw(
             n_labels=5,
             fmt="%.2e",
             vertical=True,
-            position_x=(W - _BAR + 10) / W,
-            position_y=(_PAD + 10) / H,
-            width=(_BAR - 30) / W,
+            position_x=(W - BAR + 10) / W,
+            position_y=(PAD + 10) / H,
+            width=(BAR - 30) / W,
             height=min(0.8, 400 / H),
             color="black",
             title_font_size=14,
@@ -148,7 +153,7 @@ def _draw(
     _mask(pl, pv, box, z[4] * 1.2)
     if title:
         pl.add_text(
-            title, position=(_PAD, pl.window_size[1] - _TITLE + 6), font_size=12, color="black"
+            title, position=(PAD, pl.window_size[1] - TITLE + 6), font_size=12, color="black"
         )
 
 

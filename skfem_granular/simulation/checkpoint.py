@@ -7,9 +7,9 @@ contact springs), the mesh with its meshing recipe and the reference
 positions of the particles on it, the history rows, the counters and the
 frames written so far. It is written atomically (temporary file + rename),
 so a run killed while writing leaves the previous checkpoint intact.
-Resuming rebuilds the coupling from the stored mesh; the running simulation
-refactorises at each checkpoint too, so a run resumed from a checkpoint
-reproduces the run that wrote it bit for bit (tested).
+The stepper hands over its state (``checkpoint_state``) and is rebuilt from it
+on resume; it refactorises at each checkpoint too, so a run resumed from a
+checkpoint reproduces the run that wrote it bit for bit (tested).
 """
 
 from __future__ import annotations
@@ -17,35 +17,24 @@ from __future__ import annotations
 import pickle
 from pathlib import Path
 
-from .io import atomic_write
+from ..io import atomic_write
 
-FORMAT = "skfem-granular checkpoint 1"
+FORMAT = "skfem-granular checkpoint 2"
 FILENAME = "checkpoint.pkl"
 
 
-def save(sim, state, k: int, hist, series) -> Path:
-    """Write ``checkpoint.pkl`` into the simulation's output directory."""
+def save(sim, k: int, series) -> Path:
+    """Write ``checkpoint.pkl`` into the simulation's output directory after step ``k``."""
     data = {
         "format": FORMAT,
         "scene": sim.scene,
         "k": k,
-        "state": state,
         "dem": sim.dem.save_state(),
-        "mesh": getattr(sim, "mesh", None),
-        "mesh_centers": getattr(sim, "mesh_centers", None),
-        "mesh_angles": getattr(sim, "mesh_angles", None),
-        "history": hist.rows,
-        "counters": {"remeshes": sim.remeshes, "retries": sim.retries,
-                     "rejections": sim.rejections, "euler_steps": sim.euler_steps},
+        "stepper": sim.stepper.checkpoint_state(),
+        "history": sim.history.rows,
         "frames": {name: s.frames for name, s in (series or {}).items() if s is not None},
     }
     blob = pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL)
-    # a resumed run rebuilds the DEM's Verlet neighbour list and refactorises the
-    # coupled operator; do both here too, so that the run that wrote the checkpoint and
-    # any run resumed from it do the same arithmetic from here on (bitwise equal)
-    sim.dem.neighbours.invalidate()
-    if getattr(sim, "coupling", None) is not None:
-        sim.coupling._a0 = None
     path = Path(sim.output_dir) / FILENAME
     return atomic_write(path, lambda tmp: Path(tmp).write_bytes(blob))
 

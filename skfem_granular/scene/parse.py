@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .dem import ContactLaw, Polygon
-from .fluid.properties import Fluid
-from .scene import Effects, MeshSpec, ParticleSpec, TimeSpec, _check_keys, _num, _vec
+from ..dem import ContactLaw, Polygon
+from ..fluid.properties import Fluid
+from ._checks import check_keys, num, vec
+from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
 
 SECTIONS = {"domain", "fluid", "particles", "grid", "contacts", "mesh", "time", "effects",
             "coupling", "output", "gravity"}
@@ -54,9 +55,9 @@ def _polygon(where: str, d: dict) -> Polygon:
     if "sides" not in d or "radius" not in d or "center" not in d:
         raise ValueError(f"{where}: give 'vertices', or 'sides', 'radius' and 'center'")
     sides = _int(where, "sides", d["sides"], 3, MAX_SIDES)
-    r = _num(where, "radius", d["radius"], lo=0)
-    c = _vec(where, "center", d["center"])
-    ang = _num(where, "angle", d.get("angle", 0.0))
+    r = num(where, "radius", d["radius"], lo=0)
+    c = vec(where, "center", d["center"])
+    ang = num(where, "angle", d.get("angle", 0.0))
     try:
         return Polygon.regular(sides, r, center=c, angle=ang)
     except ValueError as exc:  # e.g. a radius below the round-off of the centre coordinates
@@ -69,32 +70,32 @@ def _polygon(where: str, d: dict) -> Polygon:
 def _particle(where: str, d: dict) -> ParticleSpec:
     if not isinstance(d, dict):
         raise ValueError(f"{where} = {d!r}: must be a table ([[particles]] entry)")
-    _check_keys(where, d, PARTICLE_KEYS)
+    check_keys(where, d, PARTICLE_KEYS)
     if "density" not in d:
         raise ValueError(f"{where}.density: missing (kg/m^3, > 0)")
     # absurd sizes (1e200 m) overflow inside the polygon checks: one error line, no warnings
     with np.errstate(over="ignore", invalid="ignore", under="ignore"):
         polygon = _polygon(where, d)
-    return ParticleSpec(polygon, _num(where, "density", d["density"], lo=0),
-                        velocity=_vec(where, "velocity", d.get("velocity", (0.0, 0.0))),
-                        angular_velocity=_num(where, "angular_velocity",
+    return ParticleSpec(polygon, num(where, "density", d["density"], lo=0),
+                        velocity=vec(where, "velocity", d.get("velocity", (0.0, 0.0))),
+                        angular_velocity=num(where, "angular_velocity",
                                               d.get("angular_velocity", 0.0)),
-                        core_ratio=_num(where, "core_ratio", d.get("core_ratio", 1.0), lo=0, hi=1))
+                        core_ratio=num(where, "core_ratio", d.get("core_ratio", 1.0), lo=0, hi=1))
 
 
 def grid_particles(d: dict) -> list[ParticleSpec]:
     """An ``nx`` x ``ny`` block of regular polygons (the paper's Section 7 start)."""
-    _check_keys("grid", _table("grid", d), GRID_KEYS)
+    check_keys("grid", _table("grid", d), GRID_KEYS)
     for key in ("nx", "ny"):
         _int("grid", key, d.get(key), 1, 100)
     sides = _int("grid", "sides", d.get("sides", 6), 3, MAX_SIDES)
     seed = _int("grid", "seed", d.get("seed", 0), 0)
-    r = _num("grid", "radius", d.get("radius"), lo=0)
-    s = _num("grid", "spacing", d.get("spacing", 2.2 * r), lo=2 * r)
-    ox, oy = _vec("grid", "origin", d.get("origin"))
-    rho = _num("grid", "density", d.get("density", 2650.0), lo=0)
-    core = _num("grid", "core_ratio", d.get("core_ratio", 0.8), lo=0, hi=1)
-    jitter = _num("grid", "jitter", d.get("jitter", 0.0), lo=0, lo_open=False, hi=np.pi)
+    r = num("grid", "radius", d.get("radius"), lo=0)
+    s = num("grid", "spacing", d.get("spacing", 2.2 * r), lo=2 * r)
+    ox, oy = vec("grid", "origin", d.get("origin"))
+    rho = num("grid", "density", d.get("density", 2650.0), lo=0)
+    core = num("grid", "core_ratio", d.get("core_ratio", 0.8), lo=0, hi=1)
+    jitter = num("grid", "jitter", d.get("jitter", 0.0), lo=0, lo_open=False, hi=np.pi)
     rng = np.random.default_rng(seed)
     out = []
     for j in range(d["ny"]):
@@ -112,7 +113,7 @@ def scene_kwargs(data: dict) -> dict:
         raise ValueError(
             f"scene = {data!r}: must be a table of sections ({', '.join(sorted(SECTIONS))})"
         )
-    _check_keys("scene", data, SECTIONS)
+    check_keys("scene", data, SECTIONS)
     for name in sorted(SECTIONS - {"particles", "gravity"}):
         if name in data:
             _table(name, data[name])
@@ -126,15 +127,15 @@ def scene_kwargs(data: dict) -> dict:
     dom = data.get("domain")
     if not isinstance(dom, dict) or "box" not in dom:
         raise ValueError("domain.box: missing; give [x0, y0, x1, y1] in metres")
-    _check_keys("domain", dom, {"box", "wall_thickness"})
-    kw["domain"] = _vec("domain", "box", dom["box"], 4)
+    check_keys("domain", dom, {"box", "wall_thickness"})
+    kw["domain"] = vec("domain", "box", dom["box"], 4)
     if "wall_thickness" in dom:
-        kw["wall_thickness"] = _num("domain", "wall_thickness", dom["wall_thickness"], lo=0)
+        kw["wall_thickness"] = num("domain", "wall_thickness", dom["wall_thickness"], lo=0)
     fl = data.get("fluid")
     if fl is None:
         kw["fluid"] = None
     else:
-        _check_keys("fluid", fl, {"density", "viscosity"})
+        check_keys("fluid", fl, {"density", "viscosity"})
         try:
             kw["fluid"] = Fluid(**fl)
         except ValueError as exc:
@@ -144,35 +145,35 @@ def scene_kwargs(data: dict) -> dict:
         parts += grid_particles(data["grid"])
     kw["particles"] = parts
     if "gravity" in data:
-        kw["gravity"] = _vec("scene", "gravity", data["gravity"])
+        kw["gravity"] = vec("scene", "gravity", data["gravity"])
     if "contacts" in data:
         c = data["contacts"]
-        _check_keys("contacts", c, {"E", "mu", "gamma"})
+        check_keys("contacts", c, {"E", "mu", "gamma"})
         # checked here with the TOML field names (and booleans refused as numbers)
-        c = {k: _num("contacts", k, v, lo=0, lo_open=(k == "E")) for k, v in c.items()}
+        c = {k: num("contacts", k, v, lo=0, lo_open=(k == "E")) for k, v in c.items()}
         try:
             kw["contact_law"] = ContactLaw(**c)
         except ValueError as exc:
             raise ValueError(str(exc).replace("ContactLaw.", "contacts.")) from None
     if "mesh" in data:
-        _check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h"})
+        check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h"})
         kw["mesh"] = MeshSpec(**data["mesh"])
     if "time" in data:
-        _check_keys("time", data["time"], {"t_end", "dt", "dem_dt", "adaptive", "tol", "dt_min"})
+        check_keys("time", data["time"], {"t_end", "dt", "dem_dt", "adaptive", "tol", "dt_min"})
         kw["time"] = TimeSpec(**data["time"])
     if "effects" in data:
-        _check_keys("effects", data["effects"], {"fluid", "gravity", "convection", "contacts",
+        check_keys("effects", data["effects"], {"fluid", "gravity", "convection", "contacts",
                                                  "rotation", "remeshing"})
         kw["effects"] = Effects(**data["effects"])
     if "coupling" in data:
         c = data["coupling"]
-        _check_keys("coupling", c, {"scheme", "remesh_fraction"})
+        check_keys("coupling", c, {"scheme", "remesh_fraction"})
         kw["coupling"] = c.get("scheme", "monolithic")
         if "remesh_fraction" in c:
             kw["remesh_fraction"] = c["remesh_fraction"]
     if "output" in data:
         o = data["output"]
-        _check_keys("output", o, {"directory", "vtu_every", "checkpoint_every"})
+        check_keys("output", o, {"directory", "vtu_every", "checkpoint_every"})
         kw["output_dir"] = o.get("directory")
         if kw["output_dir"] is not None and not isinstance(kw["output_dir"], str):
             raise ValueError(f"output.directory = {kw['output_dir']!r}: must be a string (a path)")

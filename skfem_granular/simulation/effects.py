@@ -1,49 +1,10 @@
-"""Building blocks of a :class:`~skfem_granular.simulation.Simulation`: mesh, coupling, effects."""
+"""Which effects a scene turns on, and what in a scene contradicts itself."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .fluid.space import TaylorHood
-
-
-def outline_areas(outlines) -> np.ndarray:
-    """Areas ``(K,)`` of counter-clockwise outlines (shoelace formula)."""
-    return np.array([0.5 * float(np.sum(o[0] * np.roll(o[1], -1) - np.roll(o[0], -1) * o[1]))
-                     for o in outlines])
-
-
-def outline_edge(outline: np.ndarray, delta_l: float | None) -> float:
-    """Mesh edge length on an outline: ``delta_l`` or the longest polygon edge."""
-    e = np.linalg.norm(np.roll(outline, -1, axis=1) - outline, axis=0).max()
-    return float(min(e, delta_l) if delta_l else e)
-
-
-def build_mesh(scene, cores):
-    """The fluid mesh of ``scene`` around the particle cores."""
-    import meshing
-
-    m = scene.mesh
-    if m.kind == "graded":
-        return meshing.graded_mesh(scene.domain, cores, sigma=m.sigma, delta_l=m.delta_l)
-    if m.kind == "uniform":
-        return meshing.uniform_mesh(scene.domain, cores, h=m.h, delta_l=m.delta_l)
-    return meshing.group_mesh(scene.domain, cores, h=m.h, sigma=m.sigma, delta_l=m.delta_l)
-
-
-def build_coupling(scene, mesh, dem, centers=None):
-    """The coupling object for ``mesh``; ``centers`` (2, K): the particles' reference
-    positions on it (default: where the DEM holds them now)."""
-    from .coupling import MonolithicCoupling
-    from .coupling_partitioned import PartitionedCoupling
-
-    space = TaylorHood(mesh)
-    walls = {"wall": (0.0, 0.0)}
-    cls = MonolithicCoupling if scene.coupling == "monolithic" else PartitionedCoupling
-    centers = dem.positions.copy() if centers is None else np.array(centers, dtype=float)
-    return cls(space, scene.fluid, walls, centers, dem.mass.copy(),
-               dem.inertia.copy(), convection=scene.effects.convection,
-               rotation=scene.effects.rotation)
+from ..coupled.build import outline_areas
 
 
 def contacts_needed(scene, dem) -> bool:

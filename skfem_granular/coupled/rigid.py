@@ -3,16 +3,17 @@
 Particle ``k`` is the named boundary ``"particle{k}"``; its velocity DOFs
 follow the rigid motion ``u = V + omega x (x - X)`` about the reference
 centre ``X`` the particle had when the mesh was built (see
-:mod:`skfem_granular.coupling`). The fluid force on it is the consistent
-(reaction) force, read from the momentum residual on those DOFs.
+:mod:`skfem_granular.coupled.monolithic`). The fluid force on it is the
+consistent (reaction) force, read from the momentum residual on those DOFs.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .fluid.boundary import DirichletData
-from .fluid.operator import NavierStokesOperator
+from ..fluid.boundary import DirichletData
+from ..fluid.forces import rigid_lever
+from ..fluid.operator import NavierStokesOperator
 
 
 class RigidParticles:
@@ -49,23 +50,24 @@ class RigidParticles:
                                        convection=convection)
         self.wall_dirichlet = DirichletData(space, walls) if walls else None
         self.particle_dofs = [space.boundary_dofs(n) for n in names]
-        self._a0 = None
         self.timings = {"assembly": 0.0, "factorization": 0.0, "solve": 0.0, "forces": 0.0}
+        self._last = None  # right-hand side and solution of the last step (for flow())
 
-    def _levers(self, k: int):
+    def levers(self, k: int):
         """DOFs of particle ``k``, their components and ``e_z x (x - X)`` at them."""
-        sp_ = self.space
         d = self.particle_dofs[k]
-        loc, c = sp_.velocity_doflocs[:, d], sp_.component[d]
-        X, Y = self.centers[:, k]
-        return d, c, np.where(c == 0, -(loc[1] - Y), loc[0] - X)
+        return d, self.space.component[d], rigid_lever(self.space, d, self.centers[:, k])
+
+    def forget_factorization(self) -> None:
+        """Factorise anew on the next step (as a coupling rebuilt from a checkpoint does)."""
+        self.factors.clear()
 
     def fluid_forces(self, Rf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Consistent force ``(2, K)`` and torque ``(K,)`` of the fluid on each particle."""
         F = np.zeros((2, self.K))
         T = np.zeros(self.K)
         for k in range(self.K):
-            d, c, lever = self._levers(k)
+            d, c, lever = self.levers(k)
             r = Rf[d]
             F[0, k] = -r[c == 0].sum()
             F[1, k] = -r[c == 1].sum()
@@ -74,11 +76,11 @@ class RigidParticles:
 
     def flow(self, x):
         """The fluid part of a coupled state as a :class:`~skfem_granular.fluid.Flow`."""
-        from .fluid.flow import Flow
+        from ..fluid.flow import Flow
 
         op = self.op
-        rhs_u = self._last[0] if getattr(self, "_last", None) else None
-        A_uu = getattr(self, "_A_uu", None)
+        rhs_u = self._last[0] if self._last else None
+        A_uu = self.factors.A_uu
 
         def residual_u(xx):
             return op.residual(xx, rhs_u=rhs_u, A_uu=A_uu)[: self.space.nu]

@@ -18,10 +18,12 @@ import time
 
 import numpy as np
 
-from . import timestep as ts
-from .coupling_base import RigidParticles
-from .fluid.errors import ConvergenceError
-from .fluid.linsolve import make_solver
+from .. import timestep as ts
+from ..fluid.errors import ConvergenceError
+from ..fluid.factor_cache import FactorCache
+from ..fluid.linsolve import make_solver
+from ..fluid.newton import newton_iterate
+from .rigid import RigidParticles
 
 
 class PartitionedCoupling(RigidParticles):
@@ -67,31 +69,32 @@ class PartitionedCoupling(RigidParticles):
         self.newton_tol = newton_tol
         self.max_iterations = max_iterations
         self.solver = make_solver(solver, self.op.free.size)
+        self.factors = FactorCache(self.solver, self.op.reduced_bdf2_system, self.timings)
 
     def _boundary_values(self, x, xi, t):
         if self.wall_dirichlet is not None:
             d = self.wall_dirichlet.dofs
             x[d] = self.wall_dirichlet.values(t)[d]
         for k in range(self.K):
-            d, c, lever = self._levers(k)
+            d, c, lever = self.levers(k)
             x[d] = np.where(c == 0, xi[0, k], xi[1, k]) + xi[2, k] * lever
         if self.op.pinned:
             x[self.space.nu] = 0.0
 
     def _fluid_solve(self, x, rhs_u, scale):
         op = self.op
-        free = op.free
-        for it in range(1, self.max_iterations + 1):
-            R = op.residual(x, rhs_u=rhs_u, A_uu=self._A_uu)
-            dx = -self.solver.solve(R[free])
-            x[free] += dx
-            if not op.convection:
-                return it
-            if float(np.abs(dx).max()) <= self.newton_tol * max(
-                scale, np.abs(x[: self.space.nu]).max()
-            ):
-                return it
-        raise ConvergenceError("partitioned coupling: fluid corrector did not converge")
+        A_uu = self.factors.A_uu
+
+        def stop(it, dx, x):
+            return not op.convection or float(np.abs(dx).max()) <= self.newton_tol * max(
+                scale, np.abs(x[: self.space.nu]).max())
+
+        it = newton_iterate(x, lambda x: op.residual(x, rhs_u=rhs_u, A_uu=A_uu),
+                            lambda x, R, it: -self.solver.solve(R[op.free]), stop,
+                            max_iterations=self.max_iterations, index=op.free)
+        if it is None:
+            raise ConvergenceError("partitioned coupling: fluid corrector did not converge")
+        return it
 
     def step(
         self,
@@ -111,15 +114,7 @@ class PartitionedCoupling(RigidParticles):
         """One staggered step; returns the same dictionary as the monolithic coupling."""
         sp_, op = self.space, self.op
         a0, a1, a2 = ts.bdf2_coefficients(dt, dt_prev)
-        if self._a0 != a0:
-            t0 = time.perf_counter()
-            self._A_uu = op.velocity_block(a0)
-            J = op.reduced(op.matrix(self._A_uu))
-            t1 = time.perf_counter()
-            self.solver.factorize(J, op.nu_free, **op.solver_blocks(a0))
-            self.timings["assembly"] += t1 - t0
-            self.timings["factorization"] += time.perf_counter() - t1
-            self._a0 = a0
+        self.factors.operator(a0)
         hist_u = a1 * u_n + (a2 * u_prev if dt_prev is not None else 0.0)
         rhs_u = -self.fluid.density * (sp_.M @ hist_u)
         hist_xi = a1 * xi_n + (a2 * xi_prev if dt_prev is not None else 0.0)
@@ -147,7 +142,7 @@ class PartitionedCoupling(RigidParticles):
                 its += self._fluid_solve(x, rhs_u, scale)
             except ConvergenceError:
                 self._diverged(t_new, xi)
-            Rf = op.residual(x, rhs_u=rhs_u, A_uu=self._A_uu)
+            Rf = op.residual(x, rhs_u=rhs_u, A_uu=self.factors.A_uu)
             F, T = self.fluid_forces(Rf)
             xi_new = ((ext + np.vstack([F, T[None, :]])) / m3 - hist_xi) / a0
             if not self.rotation:

@@ -21,8 +21,8 @@ Between remeshes the mesh stays fixed: particle outline nodes keep the
 positions they had when the mesh was built and the rigid velocities are
 taken about that reference centre (the nodes are the particle's material
 points shifted back by the displacement since the last remesh). The
-simulation remeshes before that lag grows past a fraction of the element
-size (:mod:`skfem_granular.motion`).
+stepper remeshes before that lag grows past a fraction of the element
+size (:mod:`skfem_granular.coupled.transfer`).
 """
 
 from __future__ import annotations
@@ -32,10 +32,12 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from . import timestep as ts
-from .coupling_base import RigidParticles
-from .fluid.errors import ConvergenceError
-from .fluid.linsolve import make_solver
+from .. import timestep as ts
+from ..fluid.errors import ConvergenceError
+from ..fluid.factor_cache import FactorCache
+from ..fluid.linsolve import make_solver
+from ..fluid.newton import chord_converged, newton_iterate
+from .rigid import RigidParticles
 
 
 class MonolithicCoupling(RigidParticles):
@@ -74,6 +76,7 @@ class MonolithicCoupling(RigidParticles):
         self.max_iterations = max_iterations
         self._build_prolongation()
         self.solver = make_solver(solver, self.nz)
+        self.factors = FactorCache(self.solver, self._coupled_system, self.timings)
 
     # ------------------------------------------------------------------ structure
     @property
@@ -99,7 +102,7 @@ class MonolithicCoupling(RigidParticles):
         cols = [np.arange(u_free.size), self.nu_z + np.arange(p_free.size)]
         vals = [np.ones(u_free.size), np.ones(p_free.size)]
         for k in range(self.K):
-            d, c, lever = self._levers(k)
+            d, c, lever = self.levers(k)
             base = u_free.size + r * k
             rows += [d]
             cols += [base + c.astype(np.int64)]
@@ -145,32 +148,26 @@ class MonolithicCoupling(RigidParticles):
         m = np.stack([self.mass, self.mass, self.inertia])[: self.ndof_rigid]
         return m.T.ravel()
 
-    def _factorize(self, a0: float):
-        if self._a0 == a0:
-            return
-        t0 = time.perf_counter()
+    def _coupled_system(self, a0: float):
+        """``E^T J E + a0 diag(m, m, I)`` for the factorisation cache."""
         A_uu = self.op.velocity_block(a0)
         J = self.op.matrix(A_uu)
         Jz = (self.ET @ J @ self.E).tocsr()
         diag = np.zeros(self.nz)
         diag[self.rigid_slice] = a0 * self._inertia_diag()
         Jz = (Jz + sp.diags(diag)).tocsr()
-        t1 = time.perf_counter()
         sp_ = self.space
         pf = self.E[sp_.nu:, self.nu_z:].nonzero()[0]
         Mp = sp_.Mp[np.sort(pf)][:, np.sort(pf)]
-        self.solver.factorize(Jz, self.nu_z, Mp=Mp, ordering=self._ordering)
-        self._A_uu = A_uu
-        self._a0 = a0
-        self.timings["assembly"] += t1 - t0
-        self.timings["factorization"] += time.perf_counter() - t1
+        return A_uu, Jz, self.nu_z, dict(Mp=Mp, ordering=self._ordering)
 
     def residual(self, z, x_D, rhs_u, rigid_rhs):
         """Coupled residual and the fluid residual behind it."""
         x = self.E @ z + x_D
-        Rf = self.op.residual(x, rhs_u=rhs_u, A_uu=self._A_uu)
+        Rf = self.op.residual(x, rhs_u=rhs_u, A_uu=self.factors.A_uu)
         G = self.ET @ Rf
-        G[self.rigid_slice] += self._a0 * self._inertia_diag() * z[self.rigid_slice] - rigid_rhs
+        G[self.rigid_slice] += (self.factors.a0 * self._inertia_diag() * z[self.rigid_slice]
+                                - rigid_rhs)
         return G, Rf, x
 
     def step(self, dt: float, dt_prev: float | None, u_n, u_prev, xi_n, xi_prev,
@@ -204,7 +201,7 @@ class MonolithicCoupling(RigidParticles):
         m3 = np.stack([self.mass, self.mass, self.inertia])
         ext = np.vstack([F_ext, T_ext[None, :]])
         rigid_rhs = self._rigid_vector(ext - m3 * hist_xi)
-        self._factorize(a0)
+        self.factors.operator(a0)
         x_D = self.x_dirichlet(t_new)
         x0 = np.zeros(self.space.N)
         x0[: self.space.nu] = u_n if u_guess is None else u_guess
@@ -213,27 +210,24 @@ class MonolithicCoupling(RigidParticles):
         z = self.to_z(x0, xi_n if xi_guess is None else xi_guess)
         scale = max(float(np.abs(u_n).max()), float(np.abs(xi_n[:2]).max()), 1e-12)
         t0 = time.perf_counter()
-        prev = 0.0
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
-        solve = self.solver._solve_inexact if self.op.convection else self.solver.solve
-        for it in range(1, self.max_iterations + 1):
-            G, Rf, x = self.residual(z, x_D, rhs_u, rigid_rhs)
-            dz = -solve(G)
-            z += dz
+        solve = self.solver.solve_correction if self.op.convection else self.solver.solve
+        last = {"dn": 0.0}
+
+        def stop(it, dz, z):
             if not self.op.convection:
-                break
+                return True
             dn = float(np.abs(dz[: self.nu_z]).max())
             if not np.isfinite(dn):
                 raise ConvergenceError(f"coupled step dt={dt:.3e}: corrector produced NaN")
             tol = self.newton_tol * max(scale, float(np.abs(z[: self.nu_z]).max()))
-            # the chord iteration contracts linearly: the error left after this update is
-            # about dn * rate / (1 - rate)
-            rate = dn / prev if it > 1 and prev > 0 else 1.0
-            if dn <= tol or (rate < 0.5 and dn * rate / (1.0 - rate) <= tol):
-                break
-            prev = dn
-        else:
+            prev, last["dn"] = last["dn"], dn
+            return chord_converged(dn, prev, it, tol)
+
+        it = newton_iterate(z, lambda z: self.residual(z, x_D, rhs_u, rigid_rhs)[0],
+                            lambda z, G, it: -solve(G), stop, max_iterations=self.max_iterations)
+        if it is None:
             raise ConvergenceError(f"coupled step at t={t_new:.6g} (dt={dt:.3e}): corrector did "
                                    f"not converge in {self.max_iterations} iterations")
         self.timings["solve"] += time.perf_counter() - t0

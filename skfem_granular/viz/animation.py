@@ -1,8 +1,9 @@
 """Animations of a run: the frames of its PVD series as an animated GIF or MP4.
 
-Built on :func:`skfem_granular.render.render_frame` (pyvista, off-screen); all
-frames share one colour range and arrow scale. GIFs are written with Pillow
-(a pyvista dependency), MP4 needs ``imageio`` and ``imageio-ffmpeg``.
+:func:`render_series` draws each frame as :func:`.frames.render_frame` does
+(pyvista, off-screen); all frames share one colour range and arrow scale.
+GIFs are written with Pillow (a pyvista dependency), MP4 needs ``imageio``
+and ``imageio-ffmpeg``.
 """
 
 from __future__ import annotations
@@ -11,21 +12,21 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import read_pvd
-from .render import (
-    _check,
-    _default_box,
-    _draw,
-    _field_range,
-    _layers,
-    _plotter,
-    _pyvista,
-    _read,
-    _snapshot,
-    _title,
-    _View,
-    _widen,
+from ..io import read_pvd
+from ._common import (
+    View,
+    check_style,
+    default_box,
+    default_title,
+    field_range,
+    new_plotter,
+    read_vtu,
+    require_pyvista,
+    snapshot,
+    widen,
+    z_offsets,
 )
+from .layers import draw
 
 
 def render_series(
@@ -71,7 +72,7 @@ def render_series(
     Path
         ``path_animation``.
     """
-    _check(field, vectors, density)
+    check_style(field, vectors, density)
     if not (isinstance(every, int) and every >= 1):
         raise ValueError(f"every = {every!r}: must be an integer >= 1")
     if not fps > 0:
@@ -87,30 +88,30 @@ def render_series(
     outlines_by_time = {}
     if outlines and (out_dir / "particles.pvd").is_file():
         outlines_by_time = dict(read_pvd(out_dir / "particles.pvd"))
-    pv = _pyvista()
-    flows = [_read(pv, f, "flow frame") for _, f in frames]
-    view = _View.fit(
-        box if box is not None else _default_box(flows[0]), window_size, colour_bar=field != "mesh"
+    pv = require_pyvista()
+    flows = [read_vtu(pv, f, "flow frame") for _, f in frames]
+    view = View.fit(
+        box if box is not None else default_box(flows[0]), window_size, colour_bar=field != "mesh"
     )
     if field != "mesh" and clim is None:
-        ranges = np.array([_field_range(f, field, view.box) for f in flows])
+        ranges = np.array([field_range(f, field, view.box) for f in flows])
         clim = (ranges[:, 0].min(), ranges[:, 1].max())
-    clim = None if field == "mesh" else _widen(clim)
+    clim = None if field == "mesh" else widen(clim)
     arrow_scale = None
     if vectors == "glyphs":
         umax = max(float(np.max(f.point_data["speed"], initial=0.0)) for f in flows)
         h = min(view.box[2] - view.box[0], view.box[3] - view.box[1]) / density
         arrow_scale = 0.9 * h / umax if umax > 0 else 0.0
     writer = _writer(path_animation, fps)
-    z = _layers(view)
-    pl = _plotter(pv, view)
+    z = z_offsets(view)
+    pl = new_plotter(pv, view)
     try:
         for (t, _), flow in zip(frames, flows, strict=True):
             pfile = outlines_by_time.get(t)
-            particles = None if pfile is None else _read(pv, pfile, "particles frame")
-            pl.suppress_rendering = True  # one render per frame, in _snapshot
+            particles = None if pfile is None else read_vtu(pv, pfile, "particles frame")
+            pl.suppress_rendering = True  # one render per frame, in snapshot
             pl.clear()
-            _draw(
+            draw(
                 pl,
                 pv,
                 flow,
@@ -122,10 +123,10 @@ def render_series(
                 clim=clim,
                 arrow_scale=arrow_scale,
                 edges=edges,
-                title=_title(field, vectors, t),
+                title=default_title(field, vectors, t),
                 z=z,
             )
-            writer.append(_snapshot(pl, view))
+            writer.append(snapshot(pl, view))
     finally:
         pl.close()
     writer.close()

@@ -1,0 +1,24 @@
+"""Fluid and particles together: the one subpackage that knows both meshes and particles.
+
+- :mod:`~skfem_granular.coupled.rigid`: rigid particles as boundaries of one fluid mesh
+  (what both couplings share: boundary DOFs, lever arms, consistent forces);
+- :mod:`~skfem_granular.coupled.monolithic`: fluid + rigid-body velocities in one BDF2/Newton
+  system (the default; stable for every density ratio);
+- :mod:`~skfem_granular.coupled.partitioned`: the paper's staggered scheme, for comparison;
+- :mod:`~skfem_granular.coupled.transfer`: how far particles moved since the mesh was
+  built, and fields moved onto a new mesh;
+- :mod:`~skfem_granular.coupled.build`: a scene's mesh and coupling;
+- :mod:`~skfem_granular.coupled.state`: the BDF2 histories and the per-step report;
+- :mod:`~skfem_granular.coupled.stepper`: :class:`CoupledStepper`, which owns the DEM, the
+  coupling, the mesh and the remeshing and advances them (``for t, step in stepper.evolve()``).
+"""
+
+from .monolithic import MonolithicCoupling
+from .partitioned import PartitionedCoupling
+from .rigid import RigidParticles
+from .state import CoupledState, StepReport
+from .stepper import CoupledStepper, SimulationError
+from .transfer import FieldTransfer, lag
+
+__all__ = ["CoupledState", "CoupledStepper", "FieldTransfer", "MonolithicCoupling",
+           "PartitionedCoupling", "RigidParticles", "SimulationError", "StepReport", "lag"]

@@ -1,0 +1,51 @@
+"""Scene: a declarative description of a simulation, built in Python or read from TOML.
+
+A scene names the geometry, the materials, the discretisation, the time span
+and the *effects* it needs; :class:`~skfem_granular.simulation.Simulation`
+builds only those. Every value is validated on construction and a bad one
+raises a :class:`ValueError` with one line naming the field and the allowed
+range (``"time.dt = -1: must be a finite number > 0"``).
+
+Modules: :mod:`.sections` (:class:`Effects`, :class:`MeshSpec`,
+:class:`TimeSpec`, :class:`ParticleSpec`), :mod:`.parse` (TOML dictionary to
+:class:`Scene` arguments, :func:`grid_particles`), :mod:`.scene`
+(:class:`Scene`), :mod:`.catalog` (the scenes shipped in ``library/``:
+:func:`bundled`, :func:`bundled_scenes`; ``Scene.bundled(name)`` reads one).
+
+TOML layout (see ``library/single_particle.toml``; ``skfem-granular scenes``
+lists the bundled scenes)::
+
+    [domain]    box = [x0, y0, x1, y1], wall_thickness
+    [fluid]     density, viscosity                  (omit for a dry scene)
+    [[particles]] sides, radius, center, angle | vertices; density, velocity,
+                angular_velocity, core_ratio
+    [grid]      nx, ny, sides, radius, spacing, origin, density, core_ratio, jitter
+    [contacts]  E, mu, gamma
+    [mesh]      kind = "graded" | "uniform" | "group", delta_l, sigma, h
+    [time]      t_end, dt, dem_dt, adaptive, tol, dt_min
+    [effects]   fluid, gravity, convection, contacts, rotation, remeshing
+    [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction
+    [output]    directory, vtu_every, checkpoint_every
+"""
+
+from .catalog import bundled, bundled_scenes, first_comment
+from .parse import GRID_KEYS, MAX_SIDES, PARTICLE_KEYS, SECTIONS, grid_particles, scene_kwargs
+from .scene import Scene
+from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
+
+__all__ = [
+    "GRID_KEYS",
+    "MAX_SIDES",
+    "PARTICLE_KEYS",
+    "SECTIONS",
+    "Effects",
+    "MeshSpec",
+    "ParticleSpec",
+    "Scene",
+    "TimeSpec",
+    "bundled",
+    "bundled_scenes",
+    "first_comment",
+    "grid_particles",
+    "scene_kwargs",
+]

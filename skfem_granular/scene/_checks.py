@@ -1,0 +1,54 @@
+"""Validators of scene values: each returns the checked value or raises a one-line ValueError."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def num(section, name, value, *, lo=None, hi=None, lo_open=True, allow_none=False):
+    """A finite number in the range ``(lo, hi]`` (``[lo, hi]`` with ``lo_open=False``)."""
+    full = f"{section}.{name}"
+    if value is None and allow_none:
+        return None
+    rng = []
+    if lo is not None:
+        rng.append(f"{'>' if lo_open else '>='} {lo:g}")
+    if hi is not None:
+        rng.append(f"<= {hi:g}")
+    msg = f"{full} = {value!r}: must be a finite number {' and '.join(rng)}".rstrip()
+    if isinstance(value, bool):  # float(True) == 1.0: a boolean is a typo, not a number
+        raise ValueError(msg)
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(msg) from None
+    ok = math.isfinite(x)
+    if ok and lo is not None:
+        ok = x > lo if lo_open else x >= lo
+    if ok and hi is not None:
+        ok = x <= hi
+    if not ok:
+        raise ValueError(msg)
+    return x
+
+
+def vec(section, name, value, n=2):
+    """``n`` finite numbers, as a tuple of floats."""
+    try:
+        x = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{section}.{name} = {value!r}: must be {n} finite numbers") from None
+    if x.size != n or not np.all(np.isfinite(x)):
+        raise ValueError(f"{section}.{name} = {value!r}: must be {n} finite numbers")
+    return tuple(float(v) for v in x)
+
+
+def check_keys(section: str, data: dict, allowed) -> None:
+    """Refuse the first (sorted) key of ``data`` that is not in ``allowed``."""
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        raise ValueError(
+            f"{section}: unknown key {unknown[0]!r}; allowed keys are {', '.join(sorted(allowed))}"
+        )

@@ -1,0 +1,168 @@
+"""The :class:`Scene` dataclass: a whole simulation, built in Python or read from TOML."""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..dem import ContactLaw, Polygon, stable_time_step
+from ..fluid.properties import Fluid
+from ._checks import num, vec
+from .catalog import bundled
+from .parse import scene_kwargs
+from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Everything a simulation needs; validated on construction.
+
+    Parameters
+    ----------
+    domain : (x0, y0, x1, y1)
+        The fluid box (m); DEM walls of ``wall_thickness`` surround it.
+    particles : list of ParticleSpec
+    fluid : Fluid or None
+        ``None`` (or ``effects.fluid = False``) makes a dry scene.
+    gravity : (gx, gy)
+    contact_law : ContactLaw
+    mesh, time, effects
+        :class:`MeshSpec`, :class:`TimeSpec`, :class:`Effects`.
+    coupling : {"monolithic", "partitioned"}
+    remesh_fraction : float
+        Remesh when a particle has moved by this fraction of its outline
+        edge length since the mesh was built.
+    output_dir : str or None
+    vtu_every : int
+        Write the flow and outlines every this many steps (0: only the last).
+    checkpoint_every : int
+        Write ``checkpoint.pkl`` (the whole state: both BDF2 histories, DEM
+        contact history, mesh, history rows) every this many steps; 0: never.
+        ``Simulation.resume(directory)`` continues from it.
+    name : str
+    """
+
+    domain: tuple
+    particles: tuple
+    fluid: Fluid | None = field(default_factory=Fluid)
+    gravity: tuple = (0.0, -9.81)
+    wall_thickness: float = 0.5e-3
+    contact_law: ContactLaw = field(default_factory=ContactLaw)
+    mesh: MeshSpec = field(default_factory=MeshSpec)
+    time: TimeSpec = field(default_factory=TimeSpec)
+    effects: Effects = field(default_factory=Effects)
+    coupling: str = "monolithic"
+    remesh_fraction: float = 0.25
+    output_dir: str | None = None
+    vtu_every: int = 10
+    checkpoint_every: int = 0
+    name: str = "scene"
+
+    def __post_init__(self):
+        for name, value, cls, what in (
+            ("fluid", self.fluid, (Fluid, type(None)), "a Fluid or None (dry scene)"),
+            ("contact_law", self.contact_law, ContactLaw, "a ContactLaw"),
+            ("mesh", self.mesh, MeshSpec, "a MeshSpec"),
+            ("time", self.time, TimeSpec, "a TimeSpec"),
+            ("effects", self.effects, Effects, "an Effects"),
+        ):
+            if not isinstance(value, cls):
+                raise ValueError(f"scene.{name} = {value!r}: must be {what}")
+        d = vec("domain", "box", self.domain, 4)
+        if not (d[2] > d[0] and d[3] > d[1]):
+            raise ValueError(
+                f"domain.box = {list(d)}: must be (x0, y0, x1, y1) with x1 > x0, y1 > y0"
+            )
+        object.__setattr__(self, "domain", d)
+        object.__setattr__(self, "gravity", vec("scene", "gravity", self.gravity))
+        num("domain", "wall_thickness", self.wall_thickness, lo=0)
+        if not isinstance(self.particles, (list, tuple)) or not self.particles:
+            raise ValueError("particles: at least one particle is required")
+        object.__setattr__(self, "particles", tuple(self.particles))
+        for i, p in enumerate(self.particles):
+            if not isinstance(p, ParticleSpec):
+                raise ValueError(f"particles[{i}]: must be a ParticleSpec")
+            if not isinstance(p.polygon, Polygon):
+                raise ValueError(
+                    f"particles[{i}].polygon: must be a Polygon, got {type(p.polygon).__name__}"
+                )
+            num(f"particles[{i}]", "density", p.density, lo=0)
+            num(f"particles[{i}]", "core_ratio", p.core_ratio, lo=0, hi=1.0)
+            vec(f"particles[{i}]", "velocity", p.velocity)
+            num(f"particles[{i}]", "angular_velocity", p.angular_velocity)
+            V = p.polygon.vertices
+            if V[0].min() < d[0] or V[0].max() > d[2] or V[1].min() < d[1] or V[1].max() > d[3]:
+                raise ValueError(f"particles[{i}]: polygon sticks out of domain.box {list(d)}")
+        if self.coupling not in ("monolithic", "partitioned"):
+            raise ValueError(
+                f"coupling.scheme = {self.coupling!r}: must be 'monolithic' or 'partitioned'"
+            )
+        num("coupling", "remesh_fraction", self.remesh_fraction, lo=0, hi=1.0)
+        for key in ("vtu_every", "checkpoint_every"):
+            v = getattr(self, key)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+                raise ValueError(f"output.{key} = {v!r}: must be an integer >= 0")
+        if self.output_dir is not None and not isinstance(self.output_dir, (str, os.PathLike)):
+            raise ValueError(
+                f"output.directory = {self.output_dir!r}: must be a directory path (string)"
+            )
+        self._check_dem_dt()
+        if self.fluid is None and self.effects.fluid:
+            object.__setattr__(self, "effects", replace(self.effects, fluid=False))
+
+    def _check_dem_dt(self) -> None:
+        """``time.dem_dt`` must not exceed the DEM's stable step (named here, not as 'dt')."""
+        if self.time.dem_dt is None:
+            return
+        mass = np.array([p.density * p.polygon.area for p in self.particles])
+        law = self.contact_law
+        bound = stable_time_step(mass, law.E, law.gamma)
+        if self.time.dem_dt > bound * (1.0 + 1e-9):
+            raise ValueError(
+                f"time.dem_dt = {self.time.dem_dt:g}: must be <= {bound:.6g} s, the stable DEM "
+                f"step 0.1*pi*sqrt(min m / contacts.E) / max(1, 2 contacts.gamma)"
+            )
+
+    @property
+    def dry(self) -> bool:
+        """True when the scene has no fluid."""
+        return not self.effects.fluid
+
+    def with_mesh(self, kind: str) -> Scene:
+        """The same scene on another kind of mesh (``"graded"`` / ``"uniform"``)."""
+        return replace(self, mesh=replace(self.mesh, kind=kind))
+
+    @classmethod
+    def from_toml(cls, path) -> Scene:
+        """Read a scene from a TOML file (layout: :mod:`skfem_granular.scene`)."""
+        path = Path(path)
+        try:
+            data = tomllib.loads(path.read_text())
+        except FileNotFoundError:
+            raise ValueError(f"scene file {str(path)!r}: not found") from None
+        except IsADirectoryError:
+            raise ValueError(f"scene file {str(path)!r}: is a directory, not a TOML file") from None
+        except OSError as exc:
+            raise ValueError(f"scene file {str(path)!r}: cannot read ({exc.strerror})") from None
+        except UnicodeDecodeError:
+            raise ValueError(f"scene file {str(path)!r}: not UTF-8 text (TOML required)") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"scene file {str(path)!r}: not valid TOML ({exc})") from None
+        scene = cls.from_dict(data, name=path.stem)
+        if scene.output_dir is not None and not Path(scene.output_dir).is_absolute():
+            scene = replace(scene, output_dir=str(Path(scene.output_dir)))
+        return scene
+
+    @classmethod
+    def from_dict(cls, data: dict, name: str = "scene") -> Scene:
+        """Build a scene from the nested dictionary of the TOML layout."""
+        return cls(name=name, **scene_kwargs(data))
+
+    @classmethod
+    def bundled(cls, name: str) -> Scene:
+        """A scene shipped with the package, by name (``skfem-granular scenes`` lists them)."""
+        return cls.from_toml(bundled(name))

@@ -1,0 +1,134 @@
+"""The sections of a scene: effects, mesh, time span and particles, validated on construction."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from ..dem import Particle, Polygon
+from ._checks import num
+
+
+@dataclass(frozen=True)
+class Effects:
+    """The physics a scene calls for.
+
+    Attributes
+    ----------
+    fluid : bool
+        Off: dry DEM, no mesh at all.
+    gravity : bool
+        Buoyancy-reduced gravity on the particles.
+    convection : bool
+        Navier-Stokes (on) or unsteady Stokes (off: no Newton loop, one
+        reused factorisation).
+    contacts : bool or "auto"
+        DEM contacts; ``"auto"`` turns them on only when a pair of shadows
+        (or a shadow and a wall) could meet within the run.
+    rotation : bool
+        Particles may rotate.
+    remeshing : bool
+        Rebuild the mesh when particles have moved (otherwise the run stops
+        with an error if they move too far for the fixed mesh).
+    """
+
+    fluid: bool = True
+    gravity: bool = True
+    convection: bool = True
+    contacts: bool | str = "auto"
+    rotation: bool = True
+    remeshing: bool = True
+
+    def __post_init__(self):
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name == "contacts" and v == "auto":
+                continue
+            if not isinstance(v, bool):
+                allowed = "true, false or 'auto'" if f.name == "contacts" else "true or false"
+                raise ValueError(f"effects.{f.name} = {v!r}: must be {allowed}")
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """Discretisation of the fluid domain (see :mod:`meshing`)."""
+
+    kind: str = "graded"
+    delta_l: float | None = None
+    sigma: float | None = None
+    h: float | None = None
+
+    def __post_init__(self):
+        if self.kind not in ("graded", "uniform", "group"):
+            raise ValueError(f"mesh.kind = {self.kind!r}: must be 'graded', 'uniform' or 'group'")
+        object.__setattr__(
+            self, "delta_l", num("mesh", "delta_l", self.delta_l, lo=0, allow_none=True)
+        )
+        object.__setattr__(self, "h", num("mesh", "h", self.h, lo=0, allow_none=True))
+        if self.sigma is not None:
+            object.__setattr__(self, "sigma", num("mesh", "sigma", self.sigma, lo=1.0, hi=1.6))
+
+
+@dataclass(frozen=True)
+class TimeSpec:
+    """Time span and steps (seconds).
+
+    Attributes
+    ----------
+    t_end : float
+        End time, > 0.
+    dt : float
+        The step (fixed steps), or the first step and the largest (adaptive).
+    dem_dt : float or None
+        DEM subcycle step (None: from the contact stiffness).
+    adaptive : bool
+        Choose the steps of a coupled run from the BDF2 local error estimate
+        (accept/reject), at most ``dt``.
+    tol : float
+        Local error tolerance relative to the velocity scale, in (0, 1].
+    dt_min : float
+        Smallest step of an adaptive run; a step that would need less stops
+        the run with a clear error.
+    """
+
+    t_end: float = 1e-3
+    dt: float = 1e-5
+    dem_dt: float | None = None
+    adaptive: bool = False
+    tol: float = 1e-3
+    dt_min: float = 1e-12
+
+    def __post_init__(self):
+        object.__setattr__(self, "t_end", num("time", "t_end", self.t_end, lo=0))
+        object.__setattr__(self, "dt", num("time", "dt", self.dt, lo=0))
+        object.__setattr__(
+            self, "dem_dt", num("time", "dem_dt", self.dem_dt, lo=0, allow_none=True)
+        )
+        if self.dt > self.t_end:
+            raise ValueError(f"time.dt = {self.dt:g}: must be <= time.t_end = {self.t_end:g}")
+        if not isinstance(self.adaptive, bool):
+            raise ValueError(f"time.adaptive = {self.adaptive!r}: must be true or false")
+        object.__setattr__(self, "tol", num("time", "tol", self.tol, lo=0, hi=1))
+        object.__setattr__(self, "dt_min", num("time", "dt_min", self.dt_min, lo=0))
+        if self.dt_min > self.dt:
+            raise ValueError(f"time.dt_min = {self.dt_min:g}: must be <= time.dt = {self.dt:g}")
+
+
+@dataclass(frozen=True)
+class ParticleSpec:
+    """One particle: a convex polygon (shadow), its density, initial state and core."""
+
+    polygon: Polygon
+    density: float
+    velocity: tuple = (0.0, 0.0)
+    angular_velocity: float = 0.0
+    core_ratio: float = 1.0
+
+    def to_dem(self) -> Particle:
+        """The DEM particle."""
+        return Particle(
+            self.polygon,
+            self.density,
+            velocity=self.velocity,
+            angular_velocity=self.angular_velocity,
+            core_ratio=self.core_ratio,
+        )

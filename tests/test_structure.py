@@ -1,0 +1,142 @@
+"""The package's import rules, read from the source with ``ast`` (nothing is imported).
+
+- no import circle among the modules of ``skfem_granular`` (package ``__init__``
+  files, which only re-export, left out), counting function-local imports too;
+- no module imports a private name (``_x``) from another module, except from a
+  designated private helper module (one whose own name starts with ``_``);
+- nothing outside the coupled stepper and the simulation reaches into a private attribute of a
+  simulation or a stepper (``sim._x``, ``stepper._x``);
+- ``meshing`` never imports ``skfem_granular``; the DEM never imports ``skfem`` or
+  ``meshing``.
+"""
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PKG = ROOT / "skfem_granular"
+
+
+def _modules(root: Path, package: str) -> dict[str, Path]:
+    out = {}
+    for f in root.rglob("*.py"):
+        parts = (package,) + f.relative_to(root).with_suffix("").parts
+        name = ".".join(parts)
+        out[name.removesuffix(".__init__")] = f
+    return out
+
+
+MODULES = _modules(PKG, "skfem_granular")
+
+
+def _imports(name: str, path: Path):
+    """``(target module, imported name)`` of every ``from ... import`` in a module."""
+    tree = ast.parse(path.read_text())
+    is_pkg = path.name == "__init__.py"
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = name.split(".")
+                if not is_pkg:
+                    base = base[:-1]
+                base = base[: len(base) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            for alias in node.names:
+                yield target, alias.name
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name, None
+
+
+def _edges():
+    edges = {}
+    for name, path in MODULES.items():
+        for target, item in _imports(name, path):
+            full = f"{target}.{item}" if item else target
+            mod = full if full in MODULES else target
+            if mod in MODULES and mod != name:
+                edges.setdefault(name, set()).add(mod)
+    return edges
+
+
+def test_no_import_circle():
+    faces = {m for m, f in MODULES.items() if f.name == "__init__.py"}
+    graph = {m: {t for t in ts if t not in faces} for m, ts in _edges().items() if m not in faces}
+
+    def reaches(start, goal, seen):
+        for nxt in graph.get(start, ()):
+            if nxt == goal:
+                return True
+            if nxt not in seen:
+                seen.add(nxt)
+                if reaches(nxt, goal, seen):
+                    return True
+        return False
+
+    circles = sorted(m for m in graph if reaches(m, m, set()))
+    assert circles == [], f"modules on an import circle: {circles}"
+
+
+def test_no_private_name_imported_across_modules():
+    bad = []
+    for name, path in MODULES.items():
+        for target, item in _imports(name, path):
+            if item is None or not item.startswith("_") or item.startswith("__"):
+                continue
+            full = f"{target}.{item}"
+            source = full if full in MODULES else target
+            if not source.startswith("skfem_granular"):
+                continue
+            if source.rsplit(".", 1)[-1].startswith("_"):
+                continue  # a designated private helper module
+            bad.append(f"{name} <- {target}.{item}")
+    assert bad == [], f"private names imported across modules: {bad}"
+
+
+def test_nothing_reaches_into_a_simulation_or_stepper():
+    owners = {"sim", "simulation", "stepper"}
+    bad = []
+    for name, path in MODULES.items():
+        if name in ("skfem_granular.coupled.stepper", "skfem_granular.simulation.run"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Attribute) and node.attr.startswith("_")
+                    and not node.attr.startswith("__")):
+                base = node.value
+                if isinstance(base, ast.Attribute) and base.attr in owners:
+                    bad.append(f"{name}:{node.lineno} .{base.attr}.{node.attr}")
+                elif isinstance(base, ast.Name) and base.id in owners:
+                    bad.append(f"{name}:{node.lineno} {base.id}.{node.attr}")
+    assert bad == [], f"private attributes of a simulation or stepper used outside: {bad}"
+
+
+def test_meshing_and_dem_stay_independent():
+    meshing = _modules(ROOT / "meshing", "meshing")
+    bad = [f"{n} imports {t}" for n, p in meshing.items() for t, _ in _imports(n, p)
+           if t.split(".")[0] == "skfem_granular"]
+    dem = {n: p for n, p in MODULES.items() if n.startswith("skfem_granular.dem")}
+    bad += [f"{n} imports {t}" for n, p in dem.items() for t, _ in _imports(n, p)
+            if t.split(".")[0] in ("skfem", "meshing")]
+    assert bad == []
+
+
+def test_the_rules_catch_what_they_are_for(tmp_path):
+    """The checks find a circle and a private import in a small made-up package."""
+    global MODULES
+    pkg = tmp_path / "skfem_granular"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from .b import f\n")
+    (pkg / "b.py").write_text("def f():\n    from .a import _g\n")
+    saved, MODULES = MODULES, _modules(pkg, "skfem_granular")
+    try:
+        for check in (test_no_import_circle, test_no_private_name_imported_across_modules):
+            try:
+                check()
+            except AssertionError:
+                continue
+            raise AssertionError(f"{check.__name__} missed the planted finding")
+    finally:
+        MODULES = saved
