@@ -1,4 +1,4 @@
-"""Recompute the README's validation table (VALIDATION.md cases 1-8).
+"""Recompute the README's validation table (docs/validation.md cases 1-8).
 
 Usage: ``python benchmarks/validation_table.py [--out DIR]``.
 
@@ -332,7 +332,7 @@ def markdown(R):
                  f"max abs(vx) / max abs(vy): graded {fmt(g['vx_over_vy'])} (rounding alone); "
                  f"uniform {fmt(u['vx_over_vy'])} (rounding + discretisation)",
                  c["wall_time_s"]))
-    lines = ["| reference (VALIDATION.md) | mesh (vertices / triangles / DOFs) | measured "
+    lines = ["| reference (docs/validation.md) | mesh (vertices / triangles / DOFs) | measured "
              "| wall time |",
              "|---|---|---|---|"]
     for ref, mesh, meas, wall in rows:

@@ -1,6 +1,6 @@
 """Variable-step BDF2: coefficients, predictor, local error estimate, step control.
 
-The corrected form of the paper's Eq. 1 (DESIGN.md), with ``w = dt_n / dt_{n-1}``::
+The corrected form of the paper's Eq. 1 (docs/design.md), with ``w = dt_n / dt_{n-1}``::
 
     du/dt(t_{n+1}) ~ a0 u_{n+1} + a1 u_n + a2 u_{n-1}
     a0 = (1 + 2w) / (dt_n (1 + w)),  a1 = -(1 + w) / dt_n,  a2 = w^2 / (dt_n (1 + w))

@@ -1,4 +1,4 @@
-"""Coupled fluid-particle steps against analytic references (VALIDATION.md cases 3, 7)."""
+"""Coupled fluid-particle steps against analytic references (docs/validation.md cases 3, 7)."""
 
 import numpy as np
 import pytest
@@ -25,7 +25,7 @@ def released():
 
 
 def added_mass_acceleration(rho_p, rho_f, a, b, g):
-    """VALIDATION.md case 7: g (rho_p - rho_f) / (rho_p + C_a rho_f), C_a = (b^2+a^2)/(b^2-a^2)."""
+    """docs/validation.md case 7: g (rho_p - rho_f) / (rho_p + C_a rho_f), C_a = (b^2+a^2)/(b^2-a^2)."""
     Ca = (b**2 + a**2) / (b**2 - a**2)
     return g * (rho_p - rho_f) / (rho_p + Ca * rho_f)
 

@@ -1,4 +1,4 @@
-"""BDF2 time integration: coefficients, Taylor-Green temporal orders (VALIDATION.md case 6)."""
+"""BDF2 time integration: coefficients, Taylor-Green temporal orders (validation case 6, docs/validation.md)."""
 
 import math
 
