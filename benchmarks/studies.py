@@ -19,8 +19,7 @@ import shutil
 import time
 from pathlib import Path
 
-from skfem_granular.studies import STUDIES, run_study
-from skfem_granular.study_plots import orders
+from skfem_granular.studies import STUDIES, orders, run_study
 
 ROOT = Path(__file__).resolve().parents[1]
 

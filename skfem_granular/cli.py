@@ -225,7 +225,7 @@ def _render(args) -> int:
 
 def _study(args) -> int:
     """``skfem-granular study``: run or resume a study, print the table's path and orders."""
-    from . import studies, study_plots
+    from . import studies
 
     out = args.out or f"out/study_{args.study.replace('-', '_')}{'_smoke' if args.smoke else ''}"
     try:
@@ -241,7 +241,7 @@ def _study(args) -> int:
           f"{len(res.failed)} failed")
     for key, msg in res.failed.items():
         print(f"failed: {key}: {msg}")
-    orders = study_plots.orders(res.rows)
+    orders = studies.orders(res.rows)
     print("fitted orders (h-equivalent): " + ", ".join(f"{k} {v:.2f}" for k, v in orders.items()))
     print("wrote " + ", ".join(str(f) for f in res.files))
     return 1 if res.failed else 0

@@ -5,8 +5,7 @@ import pytest
 from helpers import annulus, box, regular_polygon
 
 import skfem_granular as sg
-from skfem_granular.coupled import MonolithicCoupling
-from skfem_granular.coupled import PartitionedCoupling
+from skfem_granular.coupled import MonolithicCoupling, PartitionedCoupling
 from skfem_granular.fluid import ConvergenceError
 
 A_IN, B_OUT, G = 1e-3, 2e-3, 9.81
@@ -25,7 +24,7 @@ def released():
 
 
 def added_mass_acceleration(rho_p, rho_f, a, b, g):
-    """docs/validation.md case 7: g (rho_p - rho_f) / (rho_p + C_a rho_f), C_a = (b^2+a^2)/(b^2-a^2)."""
+    """validation case 7: g (rho_p - rho_f) / (rho_p + C_a rho_f), C_a = (b^2+a^2)/(b^2-a^2)."""
     Ca = (b**2 + a**2) / (b**2 - a**2)
     return g * (rho_p - rho_f) / (rho_p + Ca * rho_f)
 

@@ -1,4 +1,4 @@
-"""Steady Navier-Stokes: Kovasznay flow (validation case 5, docs/validation.md), Newton reports and failures."""
+"""Steady Navier-Stokes: Kovasznay flow (validation case 5), Newton reports and failures."""
 
 import numpy as np
 import pytest

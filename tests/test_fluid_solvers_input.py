@@ -1,6 +1,6 @@
 """Linear solvers agree, bad input is refused clearly, mirror symmetry holds to round-off.
 
-References: docs/validation.md case 1 (concentric-cylinder drag) for the solver
+References: validation case 1 (concentric-cylinder drag) for the solver
 comparison, case 8 (symmetry) for the mirrored mesh.
 """
 
@@ -25,7 +25,7 @@ EPS = np.finfo(float).eps
 
 
 def drag_concentric(a, b, mu, U):
-    """docs/validation.md case 1: F = -4 pi mu U / (ln(b/a) - (b^2 - a^2)/(b^2 + a^2))."""
+    """validation case 1: F = -4 pi mu U / (ln(b/a) - (b^2 - a^2)/(b^2 + a^2))."""
     return -4 * np.pi * mu * U / (np.log(b / a) - (b**2 - a**2) / (b**2 + a**2))
 
 
@@ -335,7 +335,7 @@ def test_bad_tolerance_for_point_values(small):
             flow.velocity([[1.5], [0.0]], tol=tol)
 
 
-# symmetry (validation case 8, docs/validation.md) -----------------------------------------------------
+# symmetry (validation case 8) -----------------------------------------------------
 
 
 def half_box_with_hole(W, H, r, n, max_area):

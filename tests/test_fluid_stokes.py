@@ -10,17 +10,17 @@ A, B, MU = 1.0, 2.0, 1.0
 
 
 def drag_concentric(a, b, mu, U):
-    """docs/validation.md case 1: F = -4 pi mu U / (ln(b/a) - (b^2 - a^2)/(b^2 + a^2))."""
+    """validation case 1: F = -4 pi mu U / (ln(b/a) - (b^2 - a^2)/(b^2 + a^2))."""
     return -4 * np.pi * mu * U / (np.log(b / a) - (b**2 - a**2) / (b**2 + a**2))
 
 
 def torque_couette(a, b, mu, omega):
-    """docs/validation.md case 2: T = -4 pi mu Omega a^2 b^2 / (b^2 - a^2)."""
+    """validation case 2: T = -4 pi mu Omega a^2 b^2 / (b^2 - a^2)."""
     return -4 * np.pi * mu * omega * a**2 * b**2 / (b**2 - a**2)
 
 
 def faxen(k):
-    """docs/validation.md case 3: F/(mu U) for a cylinder on the centreline of a closed channel."""
+    """validation case 3: F/(mu U) for a cylinder on the centreline of a closed channel."""
     s = np.log(1 / k) - 0.9157 + 1.7244 * k**2 - 1.7302 * k**4 + 2.4056 * k**6 - 4.5913 * k**8
     return 4 * np.pi / s
 
@@ -90,7 +90,7 @@ def test_couette_torque_and_velocity(annulus_levels):
 
 
 def test_plane_poiseuille_to_round_off():
-    """docs/validation.md case 4: u = G/(2 mu) y (H - y) is quadratic, P2 reproduces it."""
+    """validation case 4: u = G/(2 mu) y (H - y) is quadratic, P2 reproduces it."""
     H, L, mu, G = 1.0, 3.0, 0.01, 2.0
     mesh = box(0.0, 0.0, L, H, 0.02)
 

@@ -1,4 +1,4 @@
-"""BDF2 time integration: coefficients, Taylor-Green temporal orders (validation case 6, docs/validation.md)."""
+"""BDF2 time integration: coefficients, Taylor-Green temporal orders (validation case 6)."""
 
 import math
 

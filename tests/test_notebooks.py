@@ -120,7 +120,7 @@ def test_stability_notebook(out_dir):
     rows = {row["ratio"]: row for row in v["added_mass"]}
     assert sorted(rows) == [0.1, 0.5, 1.1, 2.65]
     for ratio, row in rows.items():
-        # monolithic: the added-mass acceleration within 3 % (validation case 7, docs/validation.md)
+        # monolithic: the added-mass acceleration within 3 % (validation case 7)
         assert row["mono_err"] < 0.03, ratio
         # a single explicit pass sees no added mass: off by exactly C_a rho_f / rho_p
         assert row["explicit_err"] == pytest.approx(ca / ratio, rel=1e-3)

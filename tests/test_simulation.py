@@ -52,7 +52,7 @@ def test_single_particle_sinks_with_effects_listed(paper, tmp_path):
 
 
 def test_symmetric_mesh_keeps_horizontal_motion_at_round_off(paper):
-    """docs/validation.md case 8 on the mirror-symmetric graded mesh: drift is rounding alone."""
+    """validation case 8 on the mirror-symmetric graded mesh: drift is rounding alone."""
     h = Simulation(_short(paper)).run(progress=False).history
     assert np.abs(h.vx).max() < 1e-13 * np.abs(h.vy).max()
     assert np.abs(h.x[:, 0] - 1.5e-3).max() < 1e-15

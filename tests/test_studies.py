@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from skfem_granular import studies, study_plots
+from skfem_granular import studies
 from skfem_granular.cli import main
 from skfem_granular.studies import Run
 
@@ -45,14 +45,14 @@ def test_table_has_one_row_per_run_and_all_columns(faxen):
 
 
 def test_faxen_error_falls_with_fitted_order_above_one(faxen):
-    # VALIDATION.md case 3: F/(mu U) = 4 pi / (ln(1/k) - 0.9157 + 1.7244 k^2 - ...), k = 0.2
+    # validation case 3: F/(mu U) = 4 pi / (ln(1/k) - 0.9157 + 1.7244 k^2 - ...), k = 0.2
     assert studies.faxen_drag(0.2) == pytest.approx(16.5328, rel=1e-5)
     g = [r for r in faxen.rows if r["family"] == "graded" and not r["seed"]]
     err = [r["error"] for r in g]
     assert all(a > b for a, b in zip(err, err[1:], strict=False)), err
-    order = study_plots.orders(faxen.rows)["graded"]
+    order = studies.orders(faxen.rows)["graded"]
     assert order > 1.0
-    assert study_plots.fit_order([r["n_sides"] for r in g], err) > 1.0  # in the outline edge too
+    assert studies.fit_order([r["n_sides"] for r in g], err) > 1.0  # in the outline edge too
 
 
 def test_rounding_measures_are_named_and_small(faxen):

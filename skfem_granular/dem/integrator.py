@@ -8,7 +8,7 @@ The state is ``q = (x, y, angle)`` and ``v = (vx, vy, omega)``, both
    ``q* = q_n + dt v_n + dt^2/2 a_n``,
    ``v* = v_n + dt ((1 + w/2) a_n - (w/2) a_{n-1})`` (Adams-Bashforth 2);
 2. *evaluate* the accelerations ``a* = a(q*, v*)`` (forces / masses);
-3. *correct* with variable-step BDF2 (coefficients from :func:`skfem_granular.timestep.bdf2_coefficients`)
+3. *correct* with variable-step BDF2 (:func:`skfem_granular.timestep.bdf2_coefficients`)
    ``a0 y_{n+1} + a1 y_n + a2 y_{n-1} = f_{n+1}``, first for ``v``
    (``f = a*``), then for ``q`` (``f = v_{n+1}``).
 

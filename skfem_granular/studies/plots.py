@@ -1,38 +1,14 @@
-"""Tables and plots of a study (matplotlib, Agg): Pareto front, convergence, the paper's Fig. 2."""
+"""Figures of a study (matplotlib, Agg): Pareto front, convergence, the paper's Fig. 2."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 
-from .studies import COLUMNS
+from .analysis import orders, pareto_front, sweet_spot
 
 STYLE = {"uniform": ("o", "C0"), "graded": ("s", "C1"), "sigma": ("^", "C2"), "dt": ("D", "C3")}
-
-
-def fit_order(x, err) -> float:
-    """Slope ``p`` of ``err ~ x^-p`` (least squares in log-log; NaN with < 2 points)."""
-    x, err = np.asarray(x, float), np.asarray(err, float)
-    ok = np.isfinite(err) & (err > 0) & np.isfinite(x) & (x > 0)
-    if ok.sum() < 2:
-        return float("nan")
-    return float(-np.polyfit(np.log(x[ok]), np.log(err[ok]), 1)[0])
-
-
-def orders(rows) -> dict:
-    """Per family: order in DOFs, written h-equivalent (``err ~ DOFs^(-p/2)``), unpermuted runs."""
-    out = {}
-    for fam in ("uniform", "graded", "sigma"):
-        for sig in sorted({r["sigma"] or 0 for r in rows if r["family"] == fam}):
-            sel = [
-                r for r in rows if r["family"] == fam and not r["seed"] and (r["sigma"] or 0) == sig
-            ]
-            name = fam if fam != "sigma" else f"graded sigma={sig:g}"
-            if len(sel) > 1:
-                out[name] = 2 * fit_order([r["dofs"] for r in sel], [r["error"] for r in sel])
-    return out
 
 
 def _plt():
@@ -59,17 +35,6 @@ def _groups(rows):
             continue
         out.setdefault((r["family"], r["sigma"]), []).append(r)
     return out
-
-
-def pareto_front(points):
-    """Indices of the non-dominated points (cost, error), sorted by cost."""
-    idx = sorted(range(len(points)), key=lambda i: points[i])
-    front, best = [], np.inf
-    for i in idx:
-        if points[i][1] < best:
-            front.append(i)
-            best = points[i][1]
-    return front
 
 
 def _finish(plt, fig, ax, path, xlabel, title, fontsize=8) -> Path:
@@ -141,38 +106,6 @@ def plot_convergence(rows, path, title=""):
         title or "convergence (orders h-equivalent: err ~ DOFs^(-p/2))",
         fontsize=8,
     )
-
-
-def sweet_spot(rows, family="graded"):
-    """Fits ``disc = A N^-a`` (``family``) and ``round = B N^b`` (renumbering spreads).
-
-    Returns ``(N*, (A, a), (B, b))``: ``N*`` the DOFs where the fitted lines
-    cross (beyond it refining cannot reduce the error), None without a crossing.
-    """
-    d = [
-        r
-        for r in rows
-        if r["family"] == family
-        and not r["seed"]
-        and r["error"]
-        and np.isfinite(r["error"])
-        and r["error"] > 0
-    ]
-    q = [
-        r
-        for r in rows
-        if r["rounding_renumber"]
-        and np.isfinite(r["rounding_renumber"])
-        and r["rounding_renumber"] > 0
-    ]
-    if len(d) < 2 or len(q) < 2:
-        return None, None, None
-    a = fit_order([r["dofs"] for r in d], [r["error"] for r in d])
-    A = np.exp(np.mean([np.log(r["error"]) + a * np.log(r["dofs"]) for r in d]))
-    b = -fit_order([r["dofs"] for r in q], [r["rounding_renumber"] for r in q])
-    B = np.exp(np.mean([np.log(r["rounding_renumber"]) - b * np.log(r["dofs"]) for r in q]))
-    n_star = float((A / B) ** (1 / (a + b))) if a + b > 0 and A > B else None
-    return n_star, (float(A), float(a)), (float(B), float(b))
 
 
 def plot_fig2(rows, path, title=""):
@@ -269,67 +202,3 @@ def all_plots(rows, out_dir, study):
             f"{study}: discretisation vs rounding (paper Fig. 2, measured)",
         ),
     ]
-
-
-def _fmt(v, full=False):
-    if v is None:
-        return ""
-    if isinstance(v, float):
-        return "nan" if math.isnan(v) else (repr(v) if full else f"{v:.4g}")
-    return str(v)
-
-
-def write_tables(rows, out_dir, study, smoke) -> list[Path]:
-    """``table.csv`` (all columns) and ``table.md`` (the readable subset) with fitted orders."""
-    import csv
-
-    out_dir = Path(out_dir)
-    with open(out_dir / "table.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=COLUMNS)
-        w.writeheader()
-        w.writerows({c: _fmt(r[c], full=True) for c in COLUMNS} for r in rows)
-    cols = (
-        "family",
-        "n_sides" if study == "faxen" else "h",
-        "delta_l",
-        "sigma",
-        "dt",
-        "seed",
-        "vertices",
-        "p2_nodes",
-        "dofs",
-        "wall_time",
-        "wall_solve",
-        "peak_rss_mb",
-        "value",
-        "error",
-        "error_curve",
-        "rounding_mirror",
-        "rounding_renumber",
-        "rounding_field",
-    )
-    drop = ("dt", "error_curve", "h", "delta_l") if study == "faxen" else ("rounding_field",)
-    cols = tuple(c for c in cols if c not in drop)
-    refs = sorted({r["reference"] for r in rows if r["reference"]})
-    lines = [
-        f"# {study} study{' (smoke)' if smoke else ''}",
-        "",
-        f"quantity: {rows[0]['quantity'] if rows else ''}; reference: " + "; ".join(refs),
-        "error: relative to the reference; error_curve: max |v_y(t) - v_y,ref(t)| / "
-        "max |v_y,ref|; rounding_mirror: cross-stream/stream ratio on mirror-symmetric "
-        "meshes (rounding alone); rounding_renumber: relative spread over node "
-        "renumberings (single particle: of the whole v_y curve); rounding_field: "
-        "the same for the pressure at 74 fixed points; wall times in s; "
-        "peak_rss_mb: peak resident memory of the worker process.",
-        "",
-        "| " + " | ".join(cols) + " |",
-        "|" + "---|" * len(cols),
-    ]
-    lines += ["| " + " | ".join(_fmt(r[c]) for c in cols) + " |" for r in rows]
-    lines += [
-        "",
-        "Fitted orders (h-equivalent, err ~ DOFs^(-p/2)): "
-        + ", ".join(f"{k} {v:.2f}" for k, v in orders(rows).items()),
-    ]
-    (out_dir / "table.md").write_text("\n".join(lines) + "\n")
-    return [out_dir / "table.csv", out_dir / "table.md"]
