@@ -14,6 +14,7 @@ motions and any quadratic data exactly.
 
 from __future__ import annotations
 
+import copy
 import inspect
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -137,6 +138,14 @@ class DirichletData:
         # boundary facets not covered by Dirichlet data are open (do-nothing)
         self.closed = bool(np.all(np.isin(space.all_boundary_dofs, self.dofs)))
         self._flux_geometry = None
+
+    def moved(self, space) -> DirichletData:
+        """The same data on a moved discretisation (``space.moved(p)``): DOFs kept, values
+        evaluated at the moved DOF locations."""
+        new = copy.copy(self)
+        new.space = space
+        new._flux_geometry = None
+        return new
 
     @property
     def time_dependent(self) -> bool:

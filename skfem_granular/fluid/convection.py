@@ -12,6 +12,8 @@ fixed sparsity pattern. The results equal the forms
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 from skfem import Basis
@@ -56,6 +58,22 @@ class ConvectionKernel:
         self._wphi = np.ascontiguousarray((self.phi * self.dx).transpose(1, 0, 2))  # (nel, 6, nq)
         self._scatter_idx = (2 * self.edofs.T[:, :, None] + np.arange(2)).ravel()  # (nel, 6, 2)
         self._jac_tables = None  # built on the first jacobian() call
+
+    def with_geometry(self, dphi: np.ndarray, dx: np.ndarray) -> ConvectionKernel:
+        """The same kernel on a moved mesh: basis gradients ``dphi`` ``(6, 2, nel, nq)`` and
+        quadrature weights ``dx`` ``(nel, nq)`` of the moved triangles (values, DOFs and the
+        sparsity pattern are those of this kernel)."""
+        new = copy.copy(self)
+        new.dphi, new.dx = dphi, dx
+        nq = self._nq
+        tab = np.empty_like(self._tab)
+        tab[:, :nq] = self._tab[:, :nq]
+        tab[:, nq:2 * nq] = dphi[:, 0].transpose(1, 2, 0)
+        tab[:, 2 * nq:] = dphi[:, 1].transpose(1, 2, 0)
+        new._tab = tab
+        new._wphi = np.ascontiguousarray((self.phi * dx).transpose(1, 0, 2))
+        new._jac_tables = None
+        return new
 
     def _jacobian_tables(self):
         """Tables for :meth:`jacobian`, built once (the unsteady chord iteration never needs them).

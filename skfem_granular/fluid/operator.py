@@ -9,6 +9,7 @@ DOFs only while the fixed ones hold their prescribed values in ``x``.
 
 from __future__ import annotations
 
+import copy
 from functools import cached_property
 
 import numpy as np
@@ -60,6 +61,7 @@ class NavierStokesOperator:
             viscous = "symmetric" if dirichlet.closed else "laplace"
         self.viscous = viscous
         self.K = fluid.viscosity * space.K(viscous)
+        self._body_force_spec = body_force
         self.f = self._body_force(body_force)
         nu = space.nu
         fixed = dirichlet.dofs
@@ -74,6 +76,25 @@ class NavierStokesOperator:
         self._zero_p = sp.csr_matrix((space.np_, space.np_))
         self._velocity_blocks = {}  # c_mass -> c rho M + eta K (the last two kept)
         self._conv_positions = None  # (A_uu, positions of its entries in the convection pattern)
+
+    def moved(self, space) -> NavierStokesOperator:
+        """The same operator on a moved discretisation (``space = self.space.moved(p)``).
+
+        Boundary data, free DOFs and patterns are kept; the blocks, the convection
+        kernel and the boundary values follow the moved mesh. A body force is
+        integrated anew on the moved mesh.
+        """
+        new = copy.copy(self)
+        for cached in ("_Bt", "_B_lower"):
+            new.__dict__.pop(cached, None)
+        new.space = space
+        new.dirichlet = self.dirichlet.moved(space)
+        new.K = self.fluid.viscosity * space.K(self.viscous)
+        new._velocity_blocks = {}
+        new._conv_positions = None
+        if self._body_force_spec is not None:
+            new.f = new._body_force(self._body_force_spec)
+        return new
 
     def _body_force(self, body_force) -> np.ndarray:
         from skfem import asm
@@ -240,15 +261,23 @@ class NavierStokesOperator:
 
     # residuals ----------------------------------------------------------------
     def residual(self, x: np.ndarray, c_mass: float = 0.0, rhs_u: np.ndarray | None = None,
-                 A_uu: sp.spmatrix | None = None) -> np.ndarray:
-        """Full residual ``R(x)``; ``rhs_u`` is added to the body force."""
+                 A_uu: sp.spmatrix | None = None, w_mesh: np.ndarray | None = None) -> np.ndarray:
+        """Full residual ``R(x)``; ``rhs_u`` is added to the body force.
+
+        ``w_mesh`` (velocity DOFs) is the mesh velocity of a moving mesh: the convection
+        term becomes the ALE form ``rho ((u - w) . grad) u`` (``-rho (w . grad) u`` for
+        Stokes: the time derivative is taken at moving nodes).
+        """
         sp_ = self.space
         u, p = sp_.split(x)
         A = self.velocity_block(c_mass) if A_uu is None else A_uu
         ru = A @ u + self._Bt @ p - self.f
         if rhs_u is not None:
             ru = ru - rhs_u
-        if self.convection:
+        if w_mesh is not None:  # ALE: relative to the moving mesh, also for Stokes
+            wind = u - w_mesh if self.convection else -w_mesh
+            ru = ru + self.fluid.density * sp_.convection.apply(wind, u)
+        elif self.convection:
             ru = ru + self.fluid.density * sp_.convection.residual(u)
         return np.concatenate([ru, sp_.B @ u])
 

@@ -8,6 +8,7 @@ and unsteady solvers and by the force evaluation.
 
 from __future__ import annotations
 
+import dataclasses
 from functools import cached_property
 
 import numpy as np
@@ -53,6 +54,56 @@ class TaylorHood:
         self.nu = self.ub.N
         self.np_ = self.pb.N
         self.N = self.nu + self.np_
+        self.reference = self  # the space whose connectivity and DOF numbering this one shares
+
+    def __getattr__(self, name):
+        # a moved space (see moved()) builds its scikit-fem bases only when asked for them
+        if name in ("ub", "pb", "sb") and "mesh" in self.__dict__:
+            ub = Basis(self.mesh, ElementVector(ElementTriP2()), intorder=self.intorder)
+            self.__dict__.update(ub=ub, pb=ub.with_element(ElementTriP1()),
+                                 sb=ub.with_element(ElementTriP2()))
+            return self.__dict__[name]
+        raise AttributeError(name)
+
+    # the same discretisation on a moved mesh (ALE) --------------------------
+    @cached_property
+    def reference_blocks(self):
+        """Reference-element data that build the blocks of moved meshes (:meth:`moved`)."""
+        from .geometry import ReferenceBlocks
+
+        return ReferenceBlocks(self.reference)
+
+    def moved(self, p: np.ndarray) -> TaylorHood:
+        """This discretisation on the same mesh with its vertices moved to ``p`` ``(2, nv)``.
+
+        Connectivity, DOF numbering, boundary DOFs and sparsity patterns are shared
+        with the reference space; ``M``, ``K``, ``B``, the convection kernel and the DOF
+        locations are those of the moved triangles, built from reference-element data
+        (:mod:`~skfem_granular.fluid.geometry`), not by scikit-fem's ``asm``. The
+        scikit-fem bases of the moved mesh are built only when something asks for them
+        (output, interpolation).
+
+        Raises
+        ------
+        ValueError
+            When a triangle is inverted or degenerate at ``p``.
+        """
+        ref = self.reference
+        p = np.ascontiguousarray(p, dtype=float)
+        if p.shape != ref.mesh.p.shape or not np.all(np.isfinite(p)):
+            raise ValueError(f"p: must be finite vertex positions of shape {ref.mesh.p.shape}")
+        rb = ref.reference_blocks
+        blocks = rb.blocks(p)  # raises on an inverted triangle
+        new = object.__new__(TaylorHood)
+        d = new.__dict__
+        d.update(mesh=dataclasses.replace(ref.mesh, doflocs=p), intorder=ref.intorder,
+                 nu=ref.nu, np_=ref.np_, N=ref.N, reference=ref, reference_blocks=rb, **blocks)
+        for topo in ("component", "all_boundary_dofs", "incidence", "p1_to_p2"):
+            d[topo] = getattr(ref, topo)
+        Ainv, det = rb.maps(p)
+        d["convection"] = ref.convection.with_geometry(
+            rb.gradients(Ainv), det[:, None] * rb.weights[None, :])
+        return new
 
     # unknowns per element, for fill-reducing orderings -------------------
     @cached_property
@@ -143,21 +194,39 @@ class TaylorHood:
     def boundary_dofs(self, name: str) -> np.ndarray:
         """Velocity DOFs (both components) on boundary ``name``, sorted."""
         self.check_boundary(name, "boundary")
-        return np.sort(self.ub.get_dofs(self.mesh.boundaries[name]).all())
+        ref = self.reference
+        return np.sort(ref.ub.get_dofs(ref.mesh.boundaries[name]).all())
 
     def pressure_boundary_dofs(self, name: str) -> np.ndarray:
         """Pressure DOFs on boundary ``name``."""
-        return np.sort(self.pb.get_dofs(self.mesh.boundaries[name]).all())
+        ref = self.reference
+        return np.sort(ref.pb.get_dofs(ref.mesh.boundaries[name]).all())
 
     @cached_property
     def all_boundary_dofs(self) -> np.ndarray:
         """Velocity DOFs on the whole boundary of the mesh."""
         return np.sort(self.ub.get_dofs(self.mesh.boundary_facets()).all())
 
-    @property
+    def vertex_field(self, v: np.ndarray) -> np.ndarray:
+        """Velocity DOFs ``(nu,)`` of the piecewise-linear vector field with vertex values
+        ``v`` ``(2, nv)`` (a mesh velocity: the vertices' motion, linear on each triangle)."""
+        P = self.p1_to_p2
+        out = np.empty(self.nu)
+        out[0::2] = P @ v[0]
+        out[1::2] = P @ v[1]
+        return out
+
+    @cached_property
     def velocity_doflocs(self) -> np.ndarray:
         """Coordinates ``(2, nu)`` of each velocity DOF."""
-        return self.ub.doflocs
+        if self.reference is self:
+            return self.ub.doflocs
+        # affine triangles: P2 nodes are vertices and edge midpoints, linear in the vertices
+        P = self.p1_to_p2
+        out = np.empty((2, self.nu))
+        for c in range(2):
+            out[c, 0::2] = out[c, 1::2] = P @ self.mesh.p[c]
+        return out
 
     @cached_property
     def component(self) -> np.ndarray:

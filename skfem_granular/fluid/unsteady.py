@@ -84,12 +84,24 @@ class BDF2Integrator:
     scheme : {"bdf2", "euler"}
         Variable-step BDF2 (backward Euler on the first step only) or
         backward Euler throughout (first order, for comparison).
+    mesh_motion : callable, optional
+        ``mesh_motion(t) -> (2, nv)`` vertex positions of a moving mesh (same
+        connectivity). The equations are then solved in ALE form: nodal values
+        move with the mesh, the convection term is ``((u - w) . grad) u`` with the
+        mesh velocity ``w`` the BDF2 derivative of the vertex positions, and every
+        block is evaluated on the mesh at the end of the step (a uniform flow stays
+        uniform to round-off on any motion). The chord iteration keeps the
+        factorisation of an earlier mesh.
+    refactor_iterations : int
+        On a moving mesh: refactorise after a step that needed more chord
+        iterations than this.
     """
 
     def __init__(self, mesh, fluid, velocity: dict, *, convection: bool = True, u0=None,
                  t0: float = 0.0, body_force=None, viscous: str = "auto", solver="auto",
                  newton_tol: float = 1e-8, max_iterations: int = 12,
-                 velocity_scale: float | None = None, scheme: str = "bdf2"):
+                 velocity_scale: float | None = None, scheme: str = "bdf2",
+                 mesh_motion=None, refactor_iterations: int = 6):
         if scheme not in ("bdf2", "euler"):
             raise ValueError(f"scheme = {scheme!r}: must be 'bdf2' or 'euler'")
         self.scheme = scheme
@@ -116,7 +128,20 @@ class BDF2Integrator:
             velocity_scale = float(np.abs(vals).max()) if vals.size else 0.0
         self.velocity_scale = max(float(velocity_scale), 1e-12)
         self.timings = {"assembly": 0.0, "factorization": 0.0, "solve": 0.0}
-        self.factors = FactorCache(self.solver, self.op.reduced_bdf2_system, self.timings)
+        # the chord operator is factorised on the mesh of the last committed step
+        self.factors = FactorCache(self.solver, lambda a0: self.op.reduced_bdf2_system(a0),
+                                   self.timings)
+        if mesh_motion is not None and not callable(mesh_motion):
+            raise ValueError("mesh_motion: must be a callable t -> vertex positions (2, nv)")
+        self.mesh_motion = mesh_motion
+        self.refactor_iterations = int(refactor_iterations)
+        self.p_n = self.p_prev = None  # vertex positions at t_n, t_{n-1} (moving meshes)
+        if mesh_motion is not None:
+            self.p_n = self._positions(self.t)
+            if not np.array_equal(self.p_n, self.space.mesh.p):
+                self.space = self.space.moved(self.p_n)
+                self.op = self.op.moved(self.space)
+                self.op.apply_dirichlet(self.x, self.t)
 
     def _initial_velocity(self, u0) -> np.ndarray:
         sp_ = self.space
@@ -132,14 +157,40 @@ class BDF2Integrator:
             raise ValueError(f"u0: must be {sp_.nu} finite velocity DOFs, a Flow or f(x, y)")
         return val
 
+    def _positions(self, t: float) -> np.ndarray:
+        p = np.asarray(self.mesh_motion(t), dtype=float)
+        shape = self.space.reference.mesh.p.shape
+        if p.shape != shape or not np.all(np.isfinite(p)):
+            raise ValueError(f"mesh_motion({t:g}): must return finite vertex positions of "
+                             f"shape {shape}, got {p.shape}")
+        return p
+
+    def _moved_operator(self, dt: float, a0: float, a1: float, a2: float):
+        """Operator on the mesh at ``t + dt`` and the mesh velocity there (ALE), or the
+        fixed mesh's operator and ``None``.
+
+        The mesh velocity is the BDF2 derivative of the vertex positions, the same
+        formula as the fluid's time derivative, linear on each triangle.
+        """
+        if self.mesh_motion is None:
+            return self.op, None
+        p_new = self._positions(self.t + dt)
+        op = self.op.moved(self.space.reference.moved(p_new))
+        wv = a0 * p_new + a1 * self.p_n
+        if a2 != 0.0:
+            wv = wv + a2 * self.p_prev
+        return op, op.space.vertex_field(wv)
+
     # linear algebra ---------------------------------------------------------------
-    def _gmres_correction(self, x, r_free, a0):
+    def _gmres_correction(self, x, r_free, a0, op=None, w_mesh=None):
         """Solve the exact Newton system matrix-free, preconditioned by the chord operator."""
-        op, sp_ = self.op, self.space
+        op = self.op if op is None else op
+        sp_ = op.space
         free = op.free
         rho = self.fluid.density
         u = x[: sp_.nu]
-        A_uu = self.factors.A_uu
+        A_uu = self.factors.A_uu if w_mesh is None else op.velocity_block(a0)
+        wind = u if w_mesh is None else u - w_mesh
 
         def matvec(v):
             full = np.zeros(sp_.N)
@@ -147,9 +198,14 @@ class BDF2Integrator:
             du = full[: sp_.nu]
             out = op.residual(full, rhs_u=None, A_uu=A_uu) + np.concatenate(
                 [op.f, np.zeros(sp_.np_)])
-            if op.convection:  # replace N(du) du by the linearisation at u
-                out[: sp_.nu] += rho * (sp_.convection.jacobian_action(u, du)
-                                        - sp_.convection.residual(du))
+            kern = sp_.convection
+            if op.convection and w_mesh is None:  # replace N(du) du by the linearisation at u
+                out[: sp_.nu] += rho * (kern.jacobian_action(u, du) - kern.residual(du))
+            elif op.convection:  # ALE: N(u - w) du + N(du) u
+                out[: sp_.nu] += rho * (kern.apply(wind, du) + kern.apply(du, u)
+                                        - kern.residual(du))
+            elif w_mesh is not None:  # ALE Stokes: -N(w) du
+                out[: sp_.nu] += rho * kern.apply(-w_mesh, du)
             return out[free]
 
         n = free.size
@@ -178,17 +234,20 @@ class BDF2Integrator:
         ConvergenceError
             When the corrector does not converge.
         """
-        op, sp_ = self.op, self.space
-        nu = sp_.nu
+        nu = self.space.nu
         rho = self.fluid.density
         a0, a1, a2 = self._coefficients(dt)
         u_n = self.x[:nu]
         hist = a1 * u_n if self.u_prev is None else a1 * u_n + a2 * self.u_prev
         t0 = time.perf_counter()
+        op, w_mesh = self._moved_operator(dt, a0, a1, a2)
+        sp_ = op.space
         rhs_u = -rho * (sp_.M @ hist)
         t_op = time.perf_counter()
         A_uu = self.factors.operator(a0)
         t0 += time.perf_counter() - t_op  # the cache books its assembly and factorisation
+        if w_mesh is not None:  # the residual on the moved mesh; the factors are the chord's
+            A_uu = op.velocity_block(a0)
         u_pred = ts.predict(u_n, self.du, self.du_prev, dt, self.dt_prev)
         x = self.x.copy()
         x[:nu] = u_pred
@@ -204,21 +263,21 @@ class BDF2Integrator:
 
         def residual(x):
             t0 = time.perf_counter()
-            r = op.residual(x, rhs_u=rhs_u, A_uu=A_uu)
+            r = op.residual(x, rhs_u=rhs_u, A_uu=A_uu, w_mesh=w_mesh)
             self.timings["assembly"] += time.perf_counter() - t0
             return r
 
         def correction(x, r, it):
             t1 = time.perf_counter()
             if it_state["gmres"]:
-                dx, _ = self._gmres_correction(x, r[free], a0)
+                dx, _ = self._gmres_correction(x, r[free], a0, op, w_mesh)
             else:
                 dx = -solve(r[free])
             self.timings["solve"] += time.perf_counter() - t1
             return dx
 
         def stop(it, dx, x):
-            if not op.convection:
+            if not op.convection and w_mesh is None:
                 return True
             dnorm = float(np.abs(dx[: op.nu_free]).max())
             it_state["dnorm"] = dnorm
@@ -248,6 +307,7 @@ class BDF2Integrator:
                 f"{self.newton_tol:.0e} x velocity scale {it_state['scale']:.2e})")
         used_gmres = it_state["gmres"]
         self._last_rhs = rhs_u
+        self._trial = (dt, op, w_mesh, it)
         err = None
         if self.dt_prev is not None and self.scheme == "bdf2":
             est = ts.milne_factor(dt, self.dt_prev) * (x[:nu] - u_pred)
@@ -265,6 +325,14 @@ class BDF2Integrator:
         self.dt_prev = dt
         self.x = x_new
         self.t += dt
+        if self.mesh_motion is not None:
+            step, op, _, its = self._trial
+            if step != dt:
+                raise ValueError(f"commit(dt={dt!r}): the last try_step was for dt={step!r}")
+            self.op, self.space = op, op.space
+            self.p_prev, self.p_n = self.p_n, op.space.mesh.p
+            if its > self.refactor_iterations:  # the chord operator has gone stale
+                self.factors.clear()
 
     def flow(self) -> Flow:
         """The current state as a :class:`Flow` (forces include the fluid inertia)."""
