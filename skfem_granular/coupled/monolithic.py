@@ -77,6 +77,8 @@ class MonolithicCoupling(RigidParticles):
         self._build_prolongation()
         self.solver = make_solver(solver, self.nz)
         self.factors = FactorCache(self.solver, self._coupled_system, self.timings)
+        self.reference_op = self.op  # the operator on the mesh as built (moved ones derive)
+        self.w_mesh = None  # mesh velocity of a moving mesh (None: fixed mesh)
 
     # ------------------------------------------------------------------ structure
     @property
@@ -98,6 +100,17 @@ class MonolithicCoupling(RigidParticles):
         self.n_ufree = u_free.size
         self.nu_z = u_free.size + r * self.K  # "velocity-like" unknowns come first
         self.nz = self.nu_z + p_free.size
+        self._u_free, self._p_free = u_free, p_free
+        self.rigid_slice = slice(u_free.size, self.nu_z)
+        self._assemble_prolongation()
+        # rigid-body velocities couple to every element at their particle: nested dissection
+        # puts them in the separator where those elements part
+        self._ordering = sp_.ordering(self.E)
+
+    def _assemble_prolongation(self):
+        """``E`` (and ``E^T``) with the rotation's lever arms at the current node positions."""
+        u_free, p_free = self._u_free, self._p_free
+        r = self.ndof_rigid
         rows = [u_free, p_free]
         cols = [np.arange(u_free.size), self.nu_z + np.arange(p_free.size)]
         vals = [np.ones(u_free.size), np.ones(p_free.size)]
@@ -111,13 +124,51 @@ class MonolithicCoupling(RigidParticles):
                 rows += [d]
                 cols += [np.full(d.size, base + 2)]
                 vals += [lever]
+        if getattr(self, "_lever_slots", None) is not None:  # moved mesh: new lever values only
+            levers = np.concatenate([self.levers(k)[2] for k in range(self.K)])
+            self.E.data[self._lever_slots[0]] = levers
+            self.ET.data[self._lever_slots[1]] = levers
+            return
         self.E = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                               shape=(N, self.nz))
+                               shape=(self.space.N, self.nz))
         self.ET = self.E.T.tocsr()
-        self.rigid_slice = slice(u_free.size, self.nu_z)
-        # rigid-body velocities couple to every element at their particle: nested dissection
-        # puts them in the separator where those elements part
-        self._ordering = sp_.ordering(self.E)
+        if self.rotation:  # where the lever values sit in E and E^T, for moved meshes
+            marks = [np.zeros(u_free.size), np.zeros(p_free.size)]
+            n_lever = 0
+            for k in range(self.K):
+                d = self.particle_dofs[k]
+                marks += [np.zeros(d.size), n_lever + 1 + np.arange(d.size, dtype=float)]
+                n_lever += d.size
+            tagged = sp.csr_matrix((np.concatenate(marks), (np.concatenate(rows),
+                                                            np.concatenate(cols))),
+                                   shape=self.E.shape)
+            tagged.data[tagged.data == 0] = 0.0
+            tagged_T = tagged.T.tocsr()
+
+            def slots(M):
+                assert np.array_equal(M.indptr, (self.E if M is tagged else self.ET).indptr)
+                pos = np.flatnonzero(M.data > 0)
+                return pos[np.argsort(M.data[pos])]
+
+            self._lever_slots = (slots(tagged), slots(tagged_T))
+
+    def move(self, space, centers: np.ndarray, w_mesh: np.ndarray) -> None:
+        """Evaluate the coupled system on a moved mesh (ALE) from now on.
+
+        Parameters
+        ----------
+        space : TaylorHood
+            ``reference_space.moved(p)``: the mesh with the particles where they are.
+        centers : (2, K) ndarray
+            The particles' centres there (the rotations' lever arms are taken about them).
+        w_mesh : ndarray
+            Mesh velocity (velocity DOFs) of the step being solved.
+        """
+        self.space = space
+        self.op = self.reference_op.moved(space)
+        self.centers = np.array(centers, dtype=float).reshape(2, self.K)
+        self.w_mesh = w_mesh
+        self._assemble_prolongation()
 
     def rigid(self, z: np.ndarray) -> np.ndarray:
         """Rigid DOFs ``(3, K)`` (``Vx, Vy, omega``) of an unknown vector ``z``."""
@@ -161,17 +212,20 @@ class MonolithicCoupling(RigidParticles):
         Mp = sp_.Mp[np.sort(pf)][:, np.sort(pf)]
         return A_uu, Jz, self.nu_z, dict(Mp=Mp, ordering=self._ordering)
 
-    def residual(self, z, x_D, rhs_u, rigid_rhs):
-        """Coupled residual and the fluid residual behind it."""
+    def residual(self, z, x_D, rhs_u, rigid_rhs, A_uu=None):
+        """Coupled residual and the fluid residual behind it (``A_uu``: the velocity block
+        to use, default the factorised one's; a moved mesh passes its own)."""
         x = self.E @ z + x_D
-        Rf = self.op.residual(x, rhs_u=rhs_u, A_uu=self.factors.A_uu)
+        A_uu = self.factors.A_uu if A_uu is None else A_uu
+        Rf = self.op.residual(x, rhs_u=rhs_u, A_uu=A_uu, w_mesh=self.w_mesh)
         G = self.ET @ Rf
         G[self.rigid_slice] += (self.factors.a0 * self._inertia_diag() * z[self.rigid_slice]
                                 - rigid_rhs)
         return G, Rf, x
 
     def step(self, dt: float, dt_prev: float | None, u_n, u_prev, xi_n, xi_prev,
-             F_ext, T_ext, t_new: float, p_guess=None, u_guess=None, xi_guess=None):
+             F_ext, T_ext, t_new: float, p_guess=None, u_guess=None, xi_guess=None,
+             geometry=None):
         """Solve one BDF2 (or backward-Euler when ``dt_prev`` is None) step.
 
         Parameters
@@ -186,6 +240,12 @@ class MonolithicCoupling(RigidParticles):
             gravity, contacts).
         p_guess, u_guess, xi_guess
             Initial guess (predictor) for Newton.
+        geometry : callable, optional
+            Moving mesh (ALE): ``geometry(xi) -> (space, centers, w_mesh)`` for the
+            mesh where the particles are at the end of the step with rigid velocities
+            ``xi`` ``(3, K)``, or ``None`` when the mesh in use is still that one. It is
+            asked before every residual evaluation, so the positions at the end of the
+            step are part of the iteration (the chord operator stays the factorised one).
 
         Returns
         -------
@@ -202,6 +262,17 @@ class MonolithicCoupling(RigidParticles):
         ext = np.vstack([F_ext, T_ext[None, :]])
         rigid_rhs = self._rigid_vector(ext - m3 * hist_xi)
         self.factors.operator(a0)
+        current = {"A_uu": None, "rhs_u": rhs_u}
+
+        def refresh(xi):
+            g = geometry(xi)
+            if g is not None:
+                self.move(*g)
+                current["A_uu"] = self.op.velocity_block(a0)
+                current["rhs_u"] = -rho * (self.space.M @ hist_u)
+
+        if geometry is not None:
+            refresh(xi_n if xi_guess is None else xi_guess)
         x_D = self.x_dirichlet(t_new)
         x0 = np.zeros(self.space.N)
         x0[: self.space.nu] = u_n if u_guess is None else u_guess
@@ -216,7 +287,7 @@ class MonolithicCoupling(RigidParticles):
         last = {"dn": 0.0}
 
         def stop(it, dz, z):
-            if not self.op.convection:
+            if not self.op.convection and geometry is None:
                 return True
             dn = float(np.abs(dz[: self.nu_z]).max())
             if not np.isfinite(dn):
@@ -225,16 +296,26 @@ class MonolithicCoupling(RigidParticles):
             prev, last["dn"] = last["dn"], dn
             return chord_converged(dn, prev, it, tol)
 
-        it = newton_iterate(z, lambda z: self.residual(z, x_D, rhs_u, rigid_rhs)[0],
-                            lambda z, G, it: -solve(G), stop, max_iterations=self.max_iterations)
+        def residual(z):
+            if geometry is not None and it_count["n"] > 0:
+                refresh(self.rigid(z))
+            it_count["n"] += 1
+            return self.residual(z, x_D, current["rhs_u"], rigid_rhs, current["A_uu"])[0]
+
+        it_count = {"n": 0}
+        it = newton_iterate(z, residual, lambda z, G, it: -solve(G), stop,
+                            max_iterations=self.max_iterations)
         if it is None:
             raise ConvergenceError(f"coupled step at t={t_new:.6g} (dt={dt:.3e}): corrector did "
                                    f"not converge in {self.max_iterations} iterations")
         self.timings["solve"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        G, Rf, x = self.residual(z, x_D, rhs_u, rigid_rhs)
+        if geometry is not None:
+            refresh(self.rigid(z))
+        rhs_u, A_uu = current["rhs_u"], current["A_uu"]
+        G, Rf, x = self.residual(z, x_D, rhs_u, rigid_rhs, A_uu)
         F, T = self.fluid_forces(Rf)
         self.timings["forces"] += time.perf_counter() - t0
-        self._last = (rhs_u, x)
+        self._last = (rhs_u, x, A_uu)
         return {"x": x, "xi": self.rigid(z), "force": F, "torque": T, "iterations": it}
 

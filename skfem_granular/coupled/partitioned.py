@@ -171,7 +171,7 @@ class PartitionedCoupling(RigidParticles):
                 f"sub-iterations (last change {changes[-1]:.2e}); the added-mass effect of light "
                 "particles: use the monolithic coupling")
         self.timings["solve"] += time.perf_counter() - t0
-        self._last = (rhs_u, x)
+        self._last = (rhs_u, x, None)
         return {"x": x, "xi": xi_new, "force": F, "torque": T, "iterations": its}
 
     @staticmethod

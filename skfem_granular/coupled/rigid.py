@@ -80,9 +80,10 @@ class RigidParticles:
 
         op = self.op
         rhs_u = self._last[0] if self._last else None
-        A_uu = self.factors.A_uu
+        A_uu = self._last[2] if self._last and self._last[2] is not None else self.factors.A_uu
+        w_mesh = getattr(self, "w_mesh", None)
 
         def residual_u(xx):
-            return op.residual(xx, rhs_u=rhs_u, A_uu=A_uu)[: self.space.nu]
+            return op.residual(xx, rhs_u=rhs_u, A_uu=A_uu, w_mesh=w_mesh)[: self.space.nu]
 
         return Flow(op, op.normalize_pressure(np.array(x, dtype=float)), residual_u)

@@ -39,6 +39,9 @@ class CoupledState:
         contact force.
     euler : bool
         Whether the step that led here was a backward-Euler step.
+    nodes_n, nodes_prev : ndarray or None
+        Moving mesh (ALE): vertex positions ``(2, nv)`` at ``t`` and ``t_{n-1}``
+        (``nodes_prev`` None: the nodes were at rest before ``t``, as after a remesh).
     """
 
     u_n: np.ndarray
@@ -60,6 +63,8 @@ class CoupledState:
     since_remesh: int = 1_000_000
     contact_age: int = 1_000_000
     euler: bool = True
+    nodes_n: np.ndarray | None = None
+    nodes_prev: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

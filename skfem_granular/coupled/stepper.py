@@ -66,6 +66,7 @@ import numpy as np
 from .. import timestep as ts
 from ..fluid.errors import ConvergenceError
 from .build import build_coupling, outline_areas, outline_edge
+from .mesh_motion import MeshMotion, mesh_quality
 from .state import CoupledState, StepReport
 from .transfer import FieldTransfer, lag
 
@@ -80,6 +81,17 @@ VELOCITY_FLOOR = 1e-6
 
 #: Backward-Euler steps after the last step with a contact force (module notes).
 EULER_AFTER_CONTACT = 2
+
+#: Moving mesh: remesh when the smallest angle of the moved mesh falls below this (degrees).
+ALE_MIN_ANGLE = 12.0
+
+#: Moving mesh: remesh when a triangle has shrunk below this fraction of its built area
+#: (now, or at the positions predicted for the end of the next step).
+ALE_MIN_AREA_RATIO = 0.3
+
+#: Moving mesh: the mesh follows the particles' poses from the corrector's iterates until
+#: they change by less than this fraction of the outline edge length.
+ALE_POSE_TOL = 1e-8
 
 
 class SimulationError(RuntimeError):
@@ -138,13 +150,24 @@ class CoupledStepper:
         self._set_mesh(mesh, centers, angles)
         self.state = CoupledState(u_n=np.zeros(self.space.nu), p_n=None,
                                   x=np.zeros(self.space.N), F_held=np.zeros((2, dem.n)),
-                                  T_held=np.zeros(dem.n))
+                                  T_held=np.zeros(dem.n),
+                                  nodes_n=self.mesh.p if self.ale else None)
 
     # ------------------------------------------------------------------ mesh
     @property
     def mesh(self):
-        """The fluid mesh in use (``skfem.MeshTri``)."""
-        return getattr(self.meshed, "mesh", self.meshed)
+        """The fluid mesh in use (``skfem.MeshTri``; moved with the particles under ALE)."""
+        return self.coupling.space.mesh
+
+    @property
+    def space(self):
+        """The Taylor-Hood discretisation of :attr:`mesh`."""
+        return self.coupling.space
+
+    @property
+    def ale(self) -> bool:
+        """Whether the mesh moves with the particles (``scene.mesh_motion == "ale"``)."""
+        return self.scene.mesh_motion == "ale"
 
     def _set_mesh(self, mesh, centers=None, angles=None):
         old = getattr(self, "coupling", None)
@@ -154,10 +177,17 @@ class CoupledStepper:
         t0 = time.perf_counter()
         self.meshed = mesh
         dem = self.dem
-        self.coupling = build_coupling(self.scene, self.mesh, dem, centers=centers)
-        self.space = self.coupling.space
+        built = getattr(mesh, "mesh", mesh)
+        self.coupling = build_coupling(self.scene, built, dem, centers=centers)
+        self.reference_space = self.coupling.space
         self.mesh_centers = dem.positions.copy() if centers is None else np.array(centers)
         self.mesh_angles = dem.angles.copy() if angles is None else np.array(angles)
+        self.motion = None
+        if self.ale:
+            nodes = [np.unique(built.facets[:, built.boundaries[f"particle{k}"]])
+                     for k in range(dem.n)]
+            poses = np.vstack([self.mesh_centers, self.mesh_angles[None, :]])
+            self.motion = MeshMotion(built, nodes, poses)
         self.timings["assembly"] += time.perf_counter() - t0
 
     def _remesh_if_moved(self):
@@ -166,7 +196,10 @@ class CoupledStepper:
 
         dem, sc, s = self.dem, self.scene, self.state
         moved = lag(self.mesh_centers, self.mesh_angles, dem.positions, dem.angles, self.radius)
-        if not np.any(moved > sc.remesh_fraction * self.edge):
+        if self.ale:
+            if not self._ale_remesh_needed(moved):
+                return
+        elif not np.any(moved > sc.remesh_fraction * self.edge):
             return
         if not sc.effects.remeshing:
             raise RuntimeError(
@@ -192,6 +225,8 @@ class CoupledStepper:
         s.p_n = tr.pressure(s.p_n)
         s.x = np.concatenate([s.u_n, s.p_n])
         s.since_remesh = 0
+        if self.ale:  # the new mesh is built where the particles are: at rest until now
+            s.nodes_n, s.nodes_prev = self.mesh.p, None
         # interpolation must not create kinetic energy out of nothing: record the ratio
         if e_old > 0:
             self.remesh_energy_ratios.append(self.fluid_energy() / e_old)
@@ -261,9 +296,14 @@ class CoupledStepper:
         w = 0.0 if s.dt_prev is None else step / s.dt_prev
         u_guess = s.u_n if s.u_prev is None else s.u_n + w * (s.u_n - s.u_prev)
         xi_guess = xi_n if s.xi_prev is None else xi_n + w * (xi_n - s.xi_prev)
-        res = self.coupling.step(step, dt_prev, s.u_n, u_prev, xi_n, xi_prev, F_ext, T_ext,
-                                 s.t + step, p_guess=s.p_n, u_guess=u_guess, xi_guess=xi_guess)
         a0, a1, a2 = ts.bdf2_coefficients(step, dt_prev)
+        geometry = None
+        if self.ale:
+            geometry = self._geometry(a0, a1, a2, q_n, s.q_prev if dt_prev is not None else None,
+                                      q_dem if self.contacts_active else None)
+        res = self.coupling.step(step, dt_prev, s.u_n, u_prev, xi_n, xi_prev, F_ext, T_ext,
+                                 s.t + step, p_guess=s.p_n, u_guess=u_guess, xi_guess=xi_guess,
+                                 geometry=geometry)
         xi_new = res["xi"]
         if self.contacts_active:
             q_new = q_dem
@@ -283,7 +323,66 @@ class CoupledStepper:
                            T_held=res["torque"], du_n=du, du_prev=s.du_n, dxi_n=acc,
                            dxi_prev=s.dxi_n, since_remesh=s.since_remesh + 1,
                            contact_age=0 if touching else s.contact_age + 1, euler=euler)
+        if self.ale:
+            new.nodes_n, new.nodes_prev = self.coupling.space.mesh.p, s.nodes_n
         return new, res, acc, q_new, xi_new
+
+    def _geometry(self, a0, a1, a2, q_n, q_prev, q_fixed):
+        """The mesh-motion callback of one ALE step (see ``MonolithicCoupling.step``).
+
+        The poses at the end of the step follow from the rigid velocities by the BDF2
+        formula (or are the DEM's, with contacts); the vertices follow the poses; the
+        mesh velocity is the same BDF2 derivative of the vertex positions.
+        """
+        s = self.state
+        nodes_n = s.nodes_n
+        nodes_prev = nodes_n if s.nodes_prev is None else s.nodes_prev
+        tol = ALE_POSE_TOL * float(self.edge.min())
+        used = {"q": None}
+
+        def geometry(xi):
+            if q_fixed is not None:
+                q = q_fixed
+            else:
+                q = (xi - a1 * q_n - (a2 * q_prev if q_prev is not None else 0.0)) / a0
+            if used["q"] is not None:
+                change = (np.abs(q[:2] - used["q"][:2]).max(axis=0)
+                          + np.abs(q[2] - used["q"][2]) * self.radius)
+                if change.max() <= tol:
+                    return None
+            used["q"] = q
+            nodes = self.motion.positions(q)
+            space = self.reference_space.moved(nodes)
+            wv = a0 * nodes + a1 * nodes_n + (a2 * nodes_prev if a2 != 0.0 else 0.0)
+            return space, q[:2], space.vertex_field(wv)
+
+        return geometry
+
+    def _ale_remesh_needed(self, moved) -> bool:
+        """Moving mesh: remesh when the moved mesh's quality is low, or would be after the
+        next step, or a particle has travelled ``remesh_travel`` radii from where its mesh
+        was built."""
+        if np.any(moved > self.scene.remesh_travel * self.radius):
+            return True
+        s, motion = self.state, self.motion
+        if s.nodes_n is None:
+            return False
+        angle, ratio = mesh_quality(s.nodes_n, motion.t, motion.area_ref)
+        if angle < ALE_MIN_ANGLE or ratio < ALE_MIN_AREA_RATIO:
+            return True
+        if s.dt_prev is None or s.xi_prev is None:
+            return False
+        # the poses one (largest) step ahead, extrapolated from the last two; checked only
+        # when that step moves a particle by more than a tenth of an outline edge, or the
+        # mesh is already within 1.5x of the thresholds
+        q = self.dem.particles.q
+        ahead = q + 2.0 * (q - s.q_prev) * (self.scene.time.dt / s.dt_prev)
+        reach = lag(q[:2], q[2], ahead[:2], ahead[2], self.radius)
+        if (np.all(reach < 0.1 * self.edge) and angle > 1.5 * ALE_MIN_ANGLE
+                and ratio > 1.5 * ALE_MIN_AREA_RATIO):
+            return False
+        angle, ratio = mesh_quality(motion.positions(ahead), motion.t, motion.area_ref)
+        return angle < ALE_MIN_ANGLE or ratio < ALE_MIN_AREA_RATIO
 
     def local_error(self, attempt, step: float) -> float | None:
         """Milne estimate of the local error of an attempted step, relative; None if unknown.
@@ -421,6 +520,8 @@ class CoupledStepper:
         st = cls(scene, dem, data["mesh"], contacts_active=contacts_active, timings=timings,
                  centers=data["mesh_centers"], angles=data["mesh_angles"])
         st.state = data["state"]
+        if st.ale and st.state.nodes_n is not None:  # the mesh where the last step left it
+            st.coupling.move(st.reference_space.moved(st.state.nodes_n), dem.positions, None)
         c = data["counters"]
         st.remeshes, st.retries = c["remeshes"], c["retries"]
         st.rejections, st.euler_steps = c["rejections"], c["euler_steps"]

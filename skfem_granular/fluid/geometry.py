@@ -54,6 +54,16 @@ class _Pattern:
         data = np.bincount(self.slot, weights=local.ravel(), minlength=self.indices.size)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
 
+    def transpose_map(self):
+        """``(indices, indptr, order)`` of the transposed pattern: ``A.T.data = A.data[order]``."""
+        if not hasattr(self, "_transpose"):
+            n = self.indices.size
+            T = sp.csr_matrix((np.arange(1, n + 1, dtype=float), self.indices, self.indptr),
+                              shape=self.shape).T.tocsr()
+            T.sort_indices()
+            self._transpose = (T.indices.copy(), T.indptr.copy(), T.data.astype(np.int64) - 1)
+        return self._transpose
+
 
 class ReferenceBlocks:
     """Builds the geometric blocks of a :class:`~skfem_granular.fluid.space.TaylorHood`
@@ -91,8 +101,10 @@ class ReferenceBlocks:
         self.pu = _Pattern(np.broadcast_to(pdofs[:, :, None], (nel, 3, 12)),
                            np.broadcast_to(vdofs[:, None, :], (nel, 3, 12)), (np_, nu))
 
-    def blocks(self, p: np.ndarray) -> dict:
-        """``M``, ``K_symmetric``, ``K_laplace`` and ``B`` for vertex positions ``p`` ``(2, nv)``.
+    def blocks(self, p: np.ndarray, names=("M", "K_symmetric", "K_laplace", "B"),
+               maps=None) -> dict:
+        """The blocks ``names`` (of ``M``, ``K_symmetric``, ``K_laplace``, ``B``) for vertex
+        positions ``p`` ``(2, nv)``; ``maps``: ``(Ainv, |det A|)`` if already known.
 
         Raises
         ------
@@ -100,26 +112,31 @@ class ReferenceBlocks:
             When a triangle is inverted or degenerate at ``p`` (never assemble on a
             negative Jacobian).
         """
-        Ainv, det = self.maps(p)
+        Ainv, det = self.maps(p) if maps is None else maps
         nel = det.size
-        # G[e, c, d, i, j] = int d_c phi_i d_d phi_j over element e, as one matrix product:
-        # coefficients det Ainv[k, c] Ainv[l, d] (nel, (c, d, k, l)) times S ((k, l), (i, j))
-        C = (det[:, None, None, None, None] * Ainv.transpose(0, 2, 1)[:, :, None, :, None]
-             * Ainv.transpose(0, 2, 1)[:, None, :, None, :]).reshape(nel * 4, 4)
-        G = (C @ self.S.reshape(4, 36)).reshape(nel, 2, 2, 6, 6)
-        lap = G[:, 0, 0] + G[:, 1, 1]  # (nel, 6, 6)
-        # vector blocks ordered (e, i, c, j, d)
-        Ml = np.zeros((nel, 6, 2, 6, 2))
-        Ml[:, :, 0, :, 0] = Ml[:, :, 1, :, 1] = det[:, None, None] * self.Mhat
-        Kl = np.zeros((nel, 6, 2, 6, 2))
-        Kl[:, :, 0, :, 0] = Kl[:, :, 1, :, 1] = lap
-        Ks = Kl + G.transpose(0, 3, 2, 4, 1)  # + int d_d phi_i d_c phi_j at (e, i, c, j, d)
-        D = (Ainv.transpose(0, 2, 1).reshape(nel * 2, 2) @ self.E.reshape(2, 18))  # (e d, m j)
-        Bl = -(det[:, None, None, None] * D.reshape(nel, 2, 3, 6).transpose(0, 2, 3, 1))
-        Bl = Bl.reshape(nel, 3, 12)
-        Ml = Ml.reshape(nel, 12, 12)
-        return {"M": self.uu.matrix(Ml), "K_laplace": self.uu.matrix(Kl.reshape(nel, 12, 12)),
-                "K_symmetric": self.uu.matrix(Ks.reshape(nel, 12, 12)), "B": self.pu.matrix(Bl)}
+        out = {}
+        if "M" in names:
+            Ml = np.zeros((nel, 6, 2, 6, 2))
+            Ml[:, :, 0, :, 0] = Ml[:, :, 1, :, 1] = det[:, None, None] * self.Mhat
+            out["M"] = self.uu.matrix(Ml)
+        if "K_symmetric" in names or "K_laplace" in names:
+            # G[e, c, d, i, j] = int d_c phi_i d_d phi_j over element e, as one matrix product:
+            # coefficients det Ainv[k, c] Ainv[l, d] (nel, (c, d, k, l)) times S ((k, l), (i, j))
+            At = Ainv.transpose(0, 2, 1)
+            C = (det[:, None, None, None, None] * At[:, :, None, :, None]
+                 * At[:, None, :, None, :]).reshape(nel * 4, 4)
+            G = (C @ self.S.reshape(4, 36)).reshape(nel, 2, 2, 6, 6)
+            Kl = np.zeros((nel, 6, 2, 6, 2))  # vector blocks ordered (e, i, c, j, d)
+            Kl[:, :, 0, :, 0] = Kl[:, :, 1, :, 1] = G[:, 0, 0] + G[:, 1, 1]
+            if "K_laplace" in names:
+                out["K_laplace"] = self.uu.matrix(Kl)
+            if "K_symmetric" in names:  # + int d_d phi_i d_c phi_j at (e, i, c, j, d)
+                out["K_symmetric"] = self.uu.matrix(Kl + G.transpose(0, 3, 2, 4, 1))
+        if "B" in names:
+            D = Ainv.transpose(0, 2, 1).reshape(nel * 2, 2) @ self.E.reshape(2, 18)  # (e d, m j)
+            Bl = -(det[:, None, None, None] * D.reshape(nel, 2, 3, 6).transpose(0, 2, 3, 1))
+            out["B"] = self.pu.matrix(Bl)
+        return out
 
     def maps(self, p: np.ndarray):
         """``Ainv`` ``(nel, 2, 2)`` and ``|det A|`` ``(nel,)`` of the triangles at ``p``.

@@ -85,13 +85,19 @@ class NavierStokesOperator:
         integrated anew on the moved mesh.
         """
         new = copy.copy(self)
-        for cached in ("_Bt", "_B_lower"):
-            new.__dict__.pop(cached, None)
         new.space = space
+        B = space.B  # on the reference pattern: transposes as gathers
+        indices, indptr, order = space.reference_blocks.pu.transpose_map()
+        new._Bt = sp.csr_matrix((B.data[order], indices, indptr), shape=(B.shape[1], B.shape[0]))
+        new._B_lower = sp.csr_matrix((B.data, B.indices, B.indptr),
+                                     shape=(B.shape[0], B.shape[0] + B.shape[1]))
         new.dirichlet = self.dirichlet.moved(space)
-        new.K = self.fluid.viscosity * space.K(self.viscous)
+        Kv = space.K(self.viscous)  # same pattern object as the moved M: keep it shared
+        new.K = sp.csr_matrix((self.fluid.viscosity * Kv.data, Kv.indices, Kv.indptr),
+                              shape=Kv.shape)
         new._velocity_blocks = {}
         new._conv_positions = None
+        new.__dict__.pop("_reduced_pattern", None)
         if self._body_force_spec is not None:
             new.f = new._body_force(self._body_force_spec)
         return new
@@ -134,7 +140,12 @@ class NavierStokesOperator:
             return self.K
         A = self._velocity_blocks.get(c_mass)
         if A is None:
-            A = (c_mass * self.fluid.density) * self.space.M + self.K
+            M = self.space.M
+            if self.space.reference is not self.space:  # a moved mesh: M, K share a pattern
+                A = sp.csr_matrix(((c_mass * self.fluid.density) * M.data + self.K.data,
+                                   M.indices, M.indptr), shape=M.shape)
+            else:
+                A = (c_mass * self.fluid.density) * M + self.K
             if len(self._velocity_blocks) >= 2:
                 self._velocity_blocks.pop(next(iter(self._velocity_blocks)))
             self._velocity_blocks[c_mass] = A

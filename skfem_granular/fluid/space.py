@@ -93,17 +93,19 @@ class TaylorHood:
         if p.shape != ref.mesh.p.shape or not np.all(np.isfinite(p)):
             raise ValueError(f"p: must be finite vertex positions of shape {ref.mesh.p.shape}")
         rb = ref.reference_blocks
-        blocks = rb.blocks(p)  # raises on an inverted triangle
+        maps = rb.maps(p)  # raises on an inverted triangle
         new = object.__new__(TaylorHood)
         d = new.__dict__
         d.update(mesh=dataclasses.replace(ref.mesh, doflocs=p), intorder=ref.intorder,
-                 nu=ref.nu, np_=ref.np_, N=ref.N, reference=ref, reference_blocks=rb, **blocks)
+                 nu=ref.nu, np_=ref.np_, N=ref.N, reference=ref, reference_blocks=rb,
+                 _maps=maps)
         for topo in ("component", "all_boundary_dofs", "incidence", "p1_to_p2"):
             d[topo] = getattr(ref, topo)
-        Ainv, det = rb.maps(p)
-        d["convection"] = ref.convection.with_geometry(
-            rb.gradients(Ainv), det[:, None] * rb.weights[None, :])
         return new
+
+    def _moved_block(self, name: str):
+        """A geometric block of a moved space, from reference-element data."""
+        return self.reference_blocks.blocks(self.mesh.p, (name,), self._maps)[name]
 
     # unknowns per element, for fill-reducing orderings -------------------
     @cached_property
@@ -140,21 +142,29 @@ class TaylorHood:
     @cached_property
     def M(self) -> sp.csr_matrix:
         """Velocity mass matrix ``(u, v)``."""
+        if self.reference is not self:
+            return self._moved_block("M")
         return asm(forms.vector_mass, self.ub).tocsr()
 
     @cached_property
     def K_symmetric(self) -> sp.csr_matrix:
         """``2 (eps(u), eps(v))``; multiply by the viscosity."""
+        if self.reference is not self:
+            return self._moved_block("K_symmetric")
         return asm(forms.viscous_symmetric, self.ub).tocsr()
 
     @cached_property
     def K_laplace(self) -> sp.csr_matrix:
         """``(grad u, grad v)``; multiply by the viscosity."""
+        if self.reference is not self:
+            return self._moved_block("K_laplace")
         return asm(forms.viscous_laplace, self.ub).tocsr()
 
     @cached_property
     def B(self) -> sp.csr_matrix:
         """Divergence block ``-(q, div u)``, shape ``(np_, nu)``."""
+        if self.reference is not self:
+            return self._moved_block("B")
         return asm(forms.divergence, self.ub, self.pb).tocsr()
 
     @cached_property
@@ -170,6 +180,10 @@ class TaylorHood:
     @cached_property
     def convection(self) -> ConvectionKernel:
         """Fast convection evaluation on this mesh."""
+        if self.reference is not self:
+            rb, (Ainv, det) = self.reference_blocks, self._maps
+            return self.reference.convection.with_geometry(
+                rb.gradients(Ainv), det[:, None] * rb.weights[None, :])
         return ConvectionKernel(self.sb)
 
     def K(self, viscous: str) -> sp.csr_matrix:

@@ -24,7 +24,8 @@ lists the bundled scenes)::
     [mesh]      kind = "graded" | "uniform" | "group", delta_l, sigma, h
     [time]      t_end, dt, dem_dt, adaptive, tol, dt_min
     [effects]   fluid, gravity, convection, contacts, rotation, remeshing
-    [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction
+    [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction,
+                mesh_motion = "fixed" | "ale", remesh_travel
     [output]    directory, vtu_every, checkpoint_every
 """
 

@@ -167,10 +167,11 @@ def scene_kwargs(data: dict) -> dict:
         kw["effects"] = Effects(**data["effects"])
     if "coupling" in data:
         c = data["coupling"]
-        check_keys("coupling", c, {"scheme", "remesh_fraction"})
+        check_keys("coupling", c, {"scheme", "remesh_fraction", "mesh_motion", "remesh_travel"})
         kw["coupling"] = c.get("scheme", "monolithic")
-        if "remesh_fraction" in c:
-            kw["remesh_fraction"] = c["remesh_fraction"]
+        for key in ("remesh_fraction", "mesh_motion", "remesh_travel"):
+            if key in c:
+                kw[key] = c[key]
     if "output" in data:
         o = data["output"]
         check_keys("output", o, {"directory", "vtu_every", "checkpoint_every"})

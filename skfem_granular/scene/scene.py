@@ -34,14 +34,25 @@ class Scene:
         :class:`MeshSpec`, :class:`TimeSpec`, :class:`Effects`.
     coupling : {"monolithic", "partitioned"}
     remesh_fraction : float
-        Remesh when a particle has moved by this fraction of its outline
-        edge length since the mesh was built.
+        Fixed mesh: remesh when a particle has moved by this fraction of its
+        outline edge length since the mesh was built.
+    mesh_motion : {"fixed", "ale"}
+        ``"fixed"``: the mesh stays until a remesh (the particle boundary lags
+        behind the particle by up to ``remesh_fraction`` of an edge).
+        ``"ale"``: the mesh moves with the particles every step (outline nodes
+        rigidly, the rest by a smooth extension), the fluid in ALE form; remesh
+        only when the moved mesh's quality drops or a particle has travelled
+        ``remesh_travel`` radii from where its mesh was built.
+    remesh_travel : float
+        ALE: how far (in bounding radii) a particle may travel from the place
+        its mesh was graded for before a remesh.
     output_dir : str or None
     vtu_every : int
         Write the flow and outlines every this many steps (0: only the last).
     checkpoint_every : int
-        Write ``checkpoint.pkl`` (the whole state: both BDF2 histories, DEM
-        contact history, mesh, history rows) every this many steps; 0: never.
+        Write ``checkpoint.npz`` (plain data, the whole state: both BDF2
+        histories, DEM contact history, mesh, history rows) every this many
+        steps; 0: never (SIGINT/SIGTERM still write one).
         ``Simulation.resume(directory)`` continues from it.
     name : str
     """
@@ -57,6 +68,8 @@ class Scene:
     effects: Effects = field(default_factory=Effects)
     coupling: str = "monolithic"
     remesh_fraction: float = 0.25
+    mesh_motion: str = "fixed"
+    remesh_travel: float = 1.0
     output_dir: str | None = None
     vtu_every: int = 10
     checkpoint_every: int = 0
@@ -102,6 +115,13 @@ class Scene:
                 f"coupling.scheme = {self.coupling!r}: must be 'monolithic' or 'partitioned'"
             )
         num("coupling", "remesh_fraction", self.remesh_fraction, lo=0, hi=1.0)
+        if self.mesh_motion not in ("fixed", "ale"):
+            raise ValueError(
+                f"coupling.mesh_motion = {self.mesh_motion!r}: must be 'fixed' or 'ale'")
+        if self.mesh_motion == "ale" and self.coupling != "monolithic":
+            raise ValueError("coupling.mesh_motion = 'ale': needs coupling.scheme = "
+                             "'monolithic' (the partitioned scheme runs on a fixed mesh)")
+        num("coupling", "remesh_travel", self.remesh_travel, lo=0, hi=100.0)
         for key in ("vtu_every", "checkpoint_every"):
             v = getattr(self, key)
             if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):

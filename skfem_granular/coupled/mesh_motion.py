@@ -1,0 +1,108 @@
+"""Moving the mesh with the particles (ALE): outline nodes rigid, the rest a smooth extension.
+
+Each particle's outline vertices move rigidly with the particle, from the pose
+the mesh was built for to the pose now; wall vertices stay; every other vertex
+follows the harmonic extension of those boundary displacements, a Laplace
+problem for the displacement ``d`` with the element-size stiffening of ALE
+codes: the diffusion coefficient of a triangle is ``1 / area``, so small
+elements near the particles move almost rigidly and the large ones far away
+take up the deformation. The stiffness matrix is factorised once per mesh;
+each motion is then one triangular solve per component.
+
+:func:`mesh_quality` measures what a motion did to the triangles (smallest
+angle, smallest signed-area ratio to the built mesh), for the remeshing rule of
+:class:`~skfem_granular.coupled.stepper.CoupledStepper`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+
+def rigid_positions(points: np.ndarray, pose_ref: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Material points ``(2, n)`` of a rigid body moved from ``pose_ref`` to ``pose``
+    (both ``(x, y, angle)``)."""
+    c, s = np.cos(pose[2] - pose_ref[2]), np.sin(pose[2] - pose_ref[2])
+    r = points - pose_ref[:2, None]
+    return pose[:2, None] + np.array([c * r[0] - s * r[1], s * r[0] + c * r[1]])
+
+
+class MeshMotion:
+    """Vertex positions of a mesh for the particles' current poses.
+
+    Parameters
+    ----------
+    mesh : skfem.MeshTri
+        The mesh as built (the reference configuration).
+    particle_nodes : sequence of ndarray
+        Vertex indices of each particle's outline.
+    poses_ref : (3, K) ndarray
+        ``(x, y, angle)`` of each particle when the mesh was built.
+    """
+
+    def __init__(self, mesh, particle_nodes, poses_ref):
+        self.p_ref = np.asarray(mesh.p, dtype=float)
+        self.t = mesh.t
+        self.poses_ref = np.array(poses_ref, dtype=float).reshape(3, -1)
+        self.particle_nodes = [np.asarray(n, dtype=np.int64) for n in particle_nodes]
+        nv = self.p_ref.shape[1]
+        boundary = np.zeros(nv, dtype=bool)
+        boundary[mesh.boundary_nodes()] = True
+        for n in self.particle_nodes:
+            boundary[n] = True
+        self.fixed = np.flatnonzero(boundary)
+        self.interior = np.flatnonzero(~boundary)
+        A = self._stiffness()
+        self._A_ib = A[self.interior][:, self.fixed]
+        self._lu = spla.splu(sp.csc_matrix(A[self.interior][:, self.interior])) \
+            if self.interior.size else None
+        self.area_ref = _signed_areas(self.p_ref, self.t)
+
+    def _stiffness(self) -> sp.csr_matrix:
+        """P1 Laplacian with coefficient ``1 / area`` per triangle (element-size stiffening)."""
+        p, t = self.p_ref, self.t
+        e = [p[:, t[2]] - p[:, t[1]], p[:, t[0]] - p[:, t[2]], p[:, t[1]] - p[:, t[0]]]
+        area = np.abs(0.5 * (e[2][0] * (-e[1][1]) - e[2][1] * (-e[1][0])))
+        rows, cols, vals = [], [], []
+        for i in range(3):
+            for j in range(3):
+                # int grad phi_i . grad phi_j = e_i . e_j / (4 area); times 1 / area
+                rows.append(t[i])
+                cols.append(t[j])
+                vals.append((e[i] * e[j]).sum(axis=0) / (4.0 * area * area))
+        nv = p.shape[1]
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
+                                                     np.concatenate(cols))), shape=(nv, nv))
+
+    def positions(self, poses: np.ndarray) -> np.ndarray:
+        """Vertex positions ``(2, nv)`` with every particle at ``poses`` ``(3, K)``."""
+        poses = np.asarray(poses, dtype=float)
+        d = np.zeros_like(self.p_ref)
+        for k, n in enumerate(self.particle_nodes):
+            d[:, n] = rigid_positions(self.p_ref[:, n], self.poses_ref[:, k], poses[:, k]) \
+                - self.p_ref[:, n]
+        if self._lu is not None:
+            rhs = -(self._A_ib @ d[:, self.fixed].T)
+            d[:, self.interior] = self._lu.solve(np.ascontiguousarray(rhs)).T
+        return self.p_ref + d
+
+
+def _signed_areas(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+    a, b, c = p[:, t[0]], p[:, t[1]], p[:, t[2]]
+    return 0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+
+
+def mesh_quality(p: np.ndarray, t: np.ndarray, area_ref: np.ndarray) -> tuple[float, float]:
+    """Smallest angle (degrees) of the triangles at ``p``, and the smallest ratio of a
+    triangle's signed area to its area in the built mesh (<= 0: inverted)."""
+    ratio = float(np.min(_signed_areas(p, t) / area_ref))
+    e = [p[:, t[(i + 2) % 3]] - p[:, t[(i + 1) % 3]] for i in range(3)]
+    L = [np.linalg.norm(x, axis=0) for x in e]
+    angles = []
+    for i in range(3):  # the angle at vertex i, between the edges that meet there
+        u, v = -e[(i + 1) % 3], e[(i + 2) % 3]
+        cos = (u * v).sum(axis=0) / (L[(i + 1) % 3] * L[(i + 2) % 3])
+        angles.append(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+    return float(np.min(angles)), ratio
