@@ -1,11 +1,18 @@
 """Benchmark: mesh build times (medians) for the paper's box and a 100-particle group.
 
-Usage: ``python benchmarks/mesh_build.py [--quick] [--repeat N]``. Writes
+Usage: ``python benchmarks/mesh_build.py [--quick] [--repeat N] [--multi]``. Writes
 ``benchmarks/results/mesh_build.json`` with median/min seconds, vertex and P2
 node counts and quality figures for: graded and uniform meshes of the paper's
 single-particle box (3 x 11 mm, 1 mm disk, 24 and 48 outline segments), a
 100-particle group with graded surroundings, and remeshing after a move
 (compared with building anew).
+
+``--multi`` (issue 13) instead compares the multi-particle kinds (``field``,
+the default for more than one particle; ``graded`` circles per particle;
+``group``; ``uniform``) on the collapse's block at t = 0, touching grains on the
+floor, one layer on the floor and 100 / 1000 scattered grains: build time
+(medians, kinds interleaved), quality, DOFs, edges joining two outlines; writes
+``benchmarks/results/mesh_multi.json``.
 """
 
 from __future__ import annotations
@@ -74,13 +81,92 @@ def record(name, fn, repeat, target=None):
     return res, mesh
 
 
+def hexagon(c, r=0.4e-3, ang=0.0):
+    th = ang + 2.0 * np.pi * np.arange(6) / 6
+    return np.vstack([c[0] + r * np.cos(th), c[1] + r * np.sin(th)])
+
+
+def multi_cases():
+    """The cases of tests/test_meshing_field.py (cores 0.8 of 0.5 mm hexagons)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    import test_meshing_field as cases_mod
+
+    big = (0.0, 0.0, 64e-3, 64e-3)
+    return {"collapse block t=0 (5 x 5)": (cases_mod.BOX, cases_mod.block(5)),
+            "10 x 10 block": cases_mod.CLEAR["10 x 10 block"][:2],
+            "honeycomb 5 x 5 on the floor": cases_mod.TOUCHING["honeycomb 5 x 5 on the floor"][:2],
+            "25 in one layer (30 mm box)": (cases_mod.SPREAD_BOX, cases_mod.SPREAD),
+            "5 x 5 block (30 mm box)": (cases_mod.SPREAD_BOX, [P + np.array([[5e-3], [0.0]])
+                                                      for P in cases_mod.block(5)]),
+            "100 scattered (20 x 20 mm)": cases_mod.CLEAR["100 scattered"][:2],
+            "1000 scattered (64 x 64 mm)": (big, cases_mod.scattered(1000, big)),
+            }, cases_mod.joining_edges
+
+
+def multi(rep, output):
+    cases, joins = multi_cases()
+    kinds = ("field", "graded", "group", "uniform")
+    rows = []
+    for name, (box, parts) in cases.items():
+        ks = ("field",) if name.startswith("1000") else kinds
+        fns = {k: (lambda k=k, box=box, parts=parts: meshing.build(k, box, parts, delta_l=0.2e-3))
+               for k in ks}
+        times = {k: [] for k in ks}
+        values = {}
+        for k in ks:                                       # warm-up, and the mesh
+            try:
+                values[k] = fns[k]()
+            except ValueError as exc:
+                values[k] = exc
+        for _ in range(1 if name.startswith("1000") else rep):
+            for k in ks:                                   # interleaved: same load
+                if isinstance(values[k], Exception):
+                    continue
+                t0 = time.perf_counter()
+                fns[k]()
+                times[k].append(time.perf_counter() - t0)
+        for k in ks:
+            v = values[k]
+            if isinstance(v, Exception):
+                rows.append({"case": name, "kind": k, "error": str(v)})
+                continue
+            st = meshing.mesh_stats(v)
+            row = {"case": name, "kind": k, "median_s": float(np.median(times[k])),
+                   "n_vertices": st.n_vertices, "dofs": 2 * st.n_p2_nodes + st.n_vertices,
+                   "min_angle_deg": st.min_angle, "max_aspect": st.max_aspect,
+                   "joining_edges": int(joins(v).size), "loadavg": list(os.getloadavg())}
+            rows.append(row)
+            print(f"{name:30s} {k:8s} {1e3 * row['median_s']:8.1f} ms DOFs {row['dofs']:7d} "
+                  f"min angle {st.min_angle:5.1f} max R/2r {st.max_aspect:4.2f} "
+                  f"joins {row['joining_edges']}")
+    out = {"benchmark": "mesh_multi", "machine": platform.platform(), "cpus": os.cpu_count(),
+           "delta_l": 0.2e-3, "targets": {"100 grains": "<= 0.5 s", "1000 grains": "<= 5 s"},
+           "note": "medians of interleaved builds after one warm-up; DOFs = 2 P2 nodes + "
+                   "vertices (P2/P1); joining_edges: mesh edges between two outlines or an "
+                   "outline and the wall (0: every gap has two elements across)",
+           "results": rows}
+    Path(output).parent.mkdir(parents=True, exist_ok=True)
+    Path(output).write_text(json.dumps(out, indent=2) + "\n")
+    print(f"wrote {output}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeat", type=int, default=15)
     ap.add_argument("--quick", action="store_true", help="smoke mode: one run each, no file")
+    ap.add_argument("--multi", action="store_true",
+                    help="multi-particle kinds compared (issue 13): mesh_multi.json")
     ap.add_argument("--output",
                     default=str(Path(__file__).parent / "results" / "mesh_build.json"))
     args = ap.parse_args(argv)
+    if args.multi:
+        out = args.output
+        if out.endswith("mesh_build.json"):
+            out = str(Path(out).with_name("mesh_multi.json"))
+        multi(1 if args.quick else min(args.repeat, 5), out)
+        return
     rep = 1 if args.quick else args.repeat
     few = 1 if args.quick else max(3, rep // 3)
     d24, d48 = regular(24), regular(48)

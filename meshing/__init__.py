@@ -7,8 +7,10 @@ outlines and returns ``skfem.MeshTri`` objects with named boundaries
 
 Builders: :func:`graded_mesh` (concentric circles, Eq. 4),
 :func:`uniform_mesh` (equidistant), :func:`group_mesh` (fine region around a
-particle group, graded outside); each returns a plain ``skfem.MeshTri``.
-Mesh with provenance: :func:`build` (``build("graded" | "uniform" | "group",
+particle group, graded outside), :func:`field_mesh` (size field growing
+from the nearest particle at the Eq. 4 rate, gaps resolved: the default for
+many particles); each returns a plain ``skfem.MeshTri``.
+Mesh with provenance: :func:`build` (``build("graded" | "uniform" | "group" | "field",
 domain, particles, **options)``) returns a :class:`BodyFittedMesh`, the same
 mesh together with its :class:`Recipe` and the particles' outline vertex
 indices, kept beside the mesh so that scikit-fem transforms of the mesh
@@ -17,6 +19,7 @@ cannot drop them. Moving particles (on a :class:`BodyFittedMesh`):
 :func:`mesh_stats`, :func:`plot_mesh`.
 """
 
+from .field import field_mesh
 from .graded import graded_mesh, ring_radii
 from .group import group_mesh
 from .plot import plot_mesh
@@ -25,6 +28,7 @@ from .remesh import move_particles, remesh
 from .uniform import uniform_mesh
 from .value import BodyFittedMesh, Recipe, build
 
-__all__ = ["BodyFittedMesh", "MeshStats", "Recipe", "build", "graded_mesh", "group_mesh",
+__all__ = ["BodyFittedMesh", "MeshStats", "Recipe", "build", "field_mesh", "graded_mesh",
+           "group_mesh",
            "mesh_stats", "move_particles", "plot_mesh", "remesh", "remesh_needed",
            "ring_radii", "uniform_mesh"]

@@ -17,7 +17,7 @@ import numpy as np
 import skfem
 from numpy.typing import NDArray
 
-KINDS = ("graded", "uniform", "group")
+KINDS = ("graded", "uniform", "group", "field")
 """The mesh kinds :func:`build` knows, one per public builder."""
 
 
@@ -28,7 +28,7 @@ class Recipe:
     Attributes
     ----------
     kind : str
-        ``"graded"``, ``"uniform"`` or ``"group"`` (see :func:`build`).
+        ``"graded"``, ``"uniform"``, ``"group"`` or ``"field"`` (see :func:`build`).
     domain : object
         The ``domain`` argument as given to the builder.
     particles : tuple of ndarray
@@ -102,8 +102,8 @@ def build(kind: str, domain: object, particles: object, **options: Any) -> BodyF
     ----------
     kind
         ``"graded"`` (:func:`meshing.graded_mesh`), ``"uniform"``
-        (:func:`meshing.uniform_mesh`) or ``"group"``
-        (:func:`meshing.group_mesh`).
+        (:func:`meshing.uniform_mesh`), ``"group"`` (:func:`meshing.group_mesh`)
+        or ``"field"`` (:func:`meshing.field_mesh`).
     domain, particles
         As for the builder.
     **options
@@ -135,11 +135,13 @@ def build(kind: str, domain: object, particles: object, **options: Any) -> BodyF
     True
     """
     # imported here: the builders themselves import this module
+    from .field import build_field
     from .graded import build_graded
     from .group import build_group
     from .uniform import build_uniform
 
-    builders = {"graded": build_graded, "uniform": build_uniform, "group": build_group}
+    builders = {"graded": build_graded, "uniform": build_uniform, "group": build_group,
+                "field": build_field}
     if not isinstance(kind, str) or kind not in builders:
         raise ValueError(f"kind: expected one of {', '.join(map(repr, KINDS))}, got {kind!r}")
     builder = builders[kind]

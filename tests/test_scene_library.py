@@ -3,17 +3,23 @@
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import skfem_granular
 from skfem_granular.cli import main
 from skfem_granular.scene import Scene, bundled, bundled_scenes
 
-NAMES = ("collapse", "single_particle", "single_particle_fine")
+PAPER = ("collapse", "collapse_group", "single_particle", "single_particle_fine")
+#: issue 14's sedimentation and repose checks
+SEDIMENTATION = ("dkt_two_disks", "migration_off_centre", "repose_hexagons",
+                 "settling_disk_channel", "settling_disk_k3", "settling_hexagon",
+                 "settling_rectangle")
+NAMES = tuple(sorted(PAPER + SEDIMENTATION))
 PACKAGE = Path(skfem_granular.__file__).resolve().parent
 
 
-def test_bundled_scenes_are_the_three_paper_runs():
+def test_bundled_scenes_are_the_paper_runs_and_the_sedimentation_checks():
     scenes = bundled_scenes()
     assert tuple(scenes) == NAMES
     for name, path in scenes.items():
@@ -38,8 +44,15 @@ def test_bundled_scenes_keep_the_paper_numbers():
         assert len(sc.particles) == 1 and sc.particles[0].polygon.vertices.shape == (2, 24)
         assert sc.domain == (0.0, 0.0, 3e-3, 11e-3)
     assert sp.output_dir == "out/single_particle"
-    assert len(col.particles) == 25 and col.mesh.kind == "group"
+    assert len(col.particles) == 25 and col.mesh.kind == "auto" and col.mesh.delta_l == 2e-4
     assert col.time.t_end == 0.16 and col.time.dt == 2e-4 and col.contact_law.E == 1e7
+    # the paper's Fig. 13 mesh: the same scene on the group construction
+    grp = Scene.bundled("collapse_group")
+    assert grp.mesh.kind == "group" and grp.output_dir == "out/collapse_group"
+    assert (grp.domain, grp.time, grp.contact_law, grp.mesh.delta_l) == (
+        col.domain, col.time, col.contact_law, col.mesh.delta_l)
+    for a, b in zip(grp.particles, col.particles, strict=True):
+        np.testing.assert_array_equal(a.polygon.vertices, b.polygon.vertices)
 
 
 @pytest.mark.parametrize("spelling", ["single-particle", "single_particle", "single_particle.toml",
@@ -66,7 +79,9 @@ def test_cli_scenes_lists_names_and_first_comment(capsys):
     assert main(["scenes"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert [ln.split()[0] for ln in lines] == list(NAMES)
-    assert "on the graded mesh" in lines[1] and "equidistant (fine) mesh" in lines[2]
+    by_name = {ln.split()[0]: ln for ln in lines}
+    assert "on the graded mesh" in by_name["single_particle"]
+    assert "equidistant (fine) mesh" in by_name["single_particle_fine"]
     assert all("#" not in ln for ln in lines)
 
 
@@ -94,3 +109,30 @@ def test_cli_unknown_scene_is_a_missing_file(tmp_path, monkeypatch, capsys):
     assert main(["run", "no-such-scene"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "scene file 'no-such-scene': not found" in err[0]
+
+
+def test_sedimentation_scenes_keep_the_published_set_ups():
+    """cgs set-ups of issue 14 converted to SI (docs/sedimentation.md)."""
+    sc = {n: Scene.bundled(n) for n in SEDIMENTATION}
+    g = sc["settling_disk_channel"]
+    assert g.domain == (0.0, 0.0, 0.02, 0.06) and g.fluid.viscosity == 0.01
+    (p,) = g.particles
+    core = p.polygon.vertices
+    r_core = np.hypot(*(p.polygon.vertices - p.polygon.centroid[:, None])).max() * p.core_ratio
+    assert core.shape == (2, 32) and r_core == pytest.approx(1.25e-3, rel=1e-12)
+    assert np.allclose(p.polygon.centroid, (0.01, 0.04))
+    # mass and immersed weight of the published disk: density x shadow area = 1250 x core area
+    assert p.density * p.polygon.area == pytest.approx(1250.0 * p.polygon.area * 0.95**2)
+    d = sc["dkt_two_disks"]
+    assert d.domain == (0.0, 0.0, 0.02, 0.08) and d.fluid.viscosity == 1e-3
+    assert [tuple(np.round(q.polygon.centroid, 6)) for q in d.particles] == [(0.01, 0.068),
+                                                                          (0.00999, 0.072)]
+    assert all(q.density / q.core_ratio**2 == pytest.approx(1010.0) for q in d.particles)
+    k3 = sc["settling_disk_k3"]
+    assert k3.domain[2] == 3e-3 and k3.particles[0].polygon.vertices.shape == (2, 24)
+    rep = sc["repose_hexagons"]
+    assert rep.dry and len(rep.particles) >= 200 and rep.contact_law.mu == 0.4
+    assert all(q.polygon.vertices.shape == (2, 6) for q in rep.particles)
+    rect = sc["settling_rectangle"].particles[0].polygon
+    e = np.linalg.norm(np.diff(rect.vertices, axis=1, append=rect.vertices[:, :1]), axis=0)
+    assert e.max() / e.min() == pytest.approx(2.0)

@@ -23,14 +23,20 @@ def build_mesh(scene, cores):
     """The fluid mesh of ``scene`` around the particle cores, as a :class:`meshing.BodyFittedMesh`.
 
     Its recipe lets every remesh build the same kind of mesh around the moved cores.
+    ``kind = "auto"`` is ``"graded"`` for one particle and ``"field"`` (graded
+    from the nearest core, gaps resolved; docs/meshing.md) for more.
     """
     import meshing
 
     m = scene.mesh
+    kind = m.kind
+    if kind == "auto":
+        kind = "graded" if len(cores) == 1 else "field"
     options = {"graded": {"sigma": m.sigma, "delta_l": m.delta_l},
+               "field": {"sigma": m.sigma, "delta_l": m.delta_l},
                "uniform": {"h": m.h, "delta_l": m.delta_l},
-               "group": {"h": m.h, "sigma": m.sigma, "delta_l": m.delta_l}}[m.kind]
-    return meshing.build(m.kind, scene.domain, cores, **options)
+               "group": {"h": m.h, "sigma": m.sigma, "delta_l": m.delta_l}}[kind]
+    return meshing.build(kind, scene.domain, cores, **options)
 
 
 def build_coupling(scene, mesh, dem, centers=None):

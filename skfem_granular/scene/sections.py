@@ -48,18 +48,28 @@ class Effects:
                 raise ValueError(f"effects.{f.name} = {v!r}: must be {allowed}")
 
 
+MESH_KINDS = ("auto", "field", "graded", "uniform", "group")
+"""The values of ``mesh.kind``."""
+
+
 @dataclass(frozen=True)
 class MeshSpec:
-    """Discretisation of the fluid domain (see :mod:`meshing`)."""
+    """Discretisation of the fluid domain (see :mod:`meshing` and docs/meshing.md).
 
-    kind: str = "graded"
+    ``kind``: ``"auto"`` (default: ``"graded"`` concentric circles for one
+    particle, the ``"field"`` size-field mesh for more), ``"graded"``,
+    ``"field"``, ``"uniform"`` or ``"group"`` (the paper's Fig. 13).
+    """
+
+    kind: str = "auto"
     delta_l: float | None = None
     sigma: float | None = None
     h: float | None = None
 
     def __post_init__(self):
-        if self.kind not in ("graded", "uniform", "group"):
-            raise ValueError(f"mesh.kind = {self.kind!r}: must be 'graded', 'uniform' or 'group'")
+        if self.kind not in MESH_KINDS:
+            raise ValueError(f"mesh.kind = {self.kind!r}: must be 'auto', 'field', "
+                             "'graded', 'uniform' or 'group'")
         object.__setattr__(
             self, "delta_l", num("mesh", "delta_l", self.delta_l, lo=0, allow_none=True)
         )
