@@ -39,6 +39,11 @@ from ..fluid.linsolve import make_solver
 from ..fluid.newton import chord_converged, newton_iterate
 from .rigid import RigidParticles
 
+#: Moving mesh: when the chord iteration contracts by less than this per iteration, the
+#: corrections switch to GMRES on the exact Jacobian (ALE convection linearised), the
+#: factorisation as preconditioner.
+KRYLOV_RATE = 0.3
+
 
 class MonolithicCoupling(RigidParticles):
     """Fluid + rigid particles in one BDF2/Newton system on a fixed mesh.
@@ -212,6 +217,39 @@ class MonolithicCoupling(RigidParticles):
         Mp = sp_.Mp[np.sort(pf)][:, np.sort(pf)]
         return A_uu, Jz, self.nu_z, dict(Mp=Mp, ordering=self._ordering)
 
+    def _gmres_correction(self, z, x_D, G, A_uu, a0, solve):
+        """Newton correction by GMRES on the coupled Jacobian at ``z`` (matrix-free), with
+        the factorised chord operator as preconditioner; the mesh stays where it is."""
+        import scipy.sparse.linalg as spla
+
+        op, sp_ = self.op, self.space
+        nu, rho = sp_.nu, self.fluid.density
+        kern = sp_.convection
+        u = (self.E @ z + x_D)[:nu]
+        w = self.w_mesh
+        wind = u if w is None else u - w
+        A_uu = self.factors.A_uu if A_uu is None else A_uu
+        inertia = a0 * self._inertia_diag()
+
+        def matvec(v):
+            xv = self.E @ v
+            du = xv[:nu]
+            r = op.residual(xv, rhs_u=None, A_uu=A_uu)  # linear part (+ N(du) du, - f)
+            r[:nu] += op.f
+            if op.convection:
+                r[:nu] += rho * (kern.apply(wind, du) + kern.apply(du, u) - kern.residual(du))
+            elif w is not None:
+                r[:nu] += rho * kern.apply(-w, du)
+            out = self.ET @ r
+            out[self.rigid_slice] += inertia * v[self.rigid_slice]
+            return out
+
+        n = self.nz
+        J = spla.LinearOperator((n, n), matvec=matvec, dtype=float)
+        P = spla.LinearOperator((n, n), matvec=solve, dtype=float)
+        dz, _ = spla.gmres(J, -G, M=P, rtol=1e-10, atol=0.0, restart=30, maxiter=10)
+        return dz
+
     def residual(self, z, x_D, rhs_u, rigid_rhs, A_uu=None):
         """Coupled residual and the fluid residual behind it (``A_uu``: the velocity block
         to use, default the factorised one's; a moved mesh passes its own)."""
@@ -264,12 +302,15 @@ class MonolithicCoupling(RigidParticles):
         self.factors.operator(a0)
         current = {"A_uu": None, "rhs_u": rhs_u}
 
+        def refresh_with(g):
+            self.move(*g)
+            current["A_uu"] = self.op.velocity_block(a0)
+            current["rhs_u"] = -rho * (self.space.M @ hist_u)
+
         def refresh(xi):
             g = geometry(xi)
             if g is not None:
-                self.move(*g)
-                current["A_uu"] = self.op.velocity_block(a0)
-                current["rhs_u"] = -rho * (self.space.M @ hist_u)
+                refresh_with(g)
 
         if geometry is not None:
             refresh(xi_n if xi_guess is None else xi_guess)
@@ -284,7 +325,7 @@ class MonolithicCoupling(RigidParticles):
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
         solve = self.solver.solve_correction if self.op.convection else self.solver.solve
-        last = {"dn": 0.0}
+        last = {"dn": 0.0, "krylov": False}
 
         def stop(it, dz, z):
             if not self.op.convection and geometry is None:
@@ -294,7 +335,19 @@ class MonolithicCoupling(RigidParticles):
                 raise ConvergenceError(f"coupled step dt={dt:.3e}: corrector produced NaN")
             tol = self.newton_tol * max(scale, float(np.abs(z[: self.nu_z]).max()))
             prev, last["dn"] = last["dn"], dn
-            return chord_converged(dn, prev, it, tol)
+            done = chord_converged(dn, prev, it, tol)
+            if geometry is None:
+                return done
+            if not done and not last["krylov"] and it >= 2 and dn > KRYLOV_RATE * prev:
+                # the ALE convection (u - w) . grad u, with w over the whole moving region,
+                # is far from the chord operator: Newton-GMRES preconditioned by it
+                last["krylov"] = True
+            return done
+
+        def correct(z, G, it):
+            if last["krylov"]:
+                return self._gmres_correction(z, x_D, G, current["A_uu"], a0, solve)
+            return -solve(G)
 
         def residual(z):
             if geometry is not None and it_count["n"] > 0:
@@ -303,11 +356,11 @@ class MonolithicCoupling(RigidParticles):
             return self.residual(z, x_D, current["rhs_u"], rigid_rhs, current["A_uu"])[0]
 
         it_count = {"n": 0}
-        it = newton_iterate(z, residual, lambda z, G, it: -solve(G), stop,
-                            max_iterations=self.max_iterations)
+        limit = self.max_iterations
+        it = newton_iterate(z, residual, correct, stop, max_iterations=limit)
         if it is None:
             raise ConvergenceError(f"coupled step at t={t_new:.6g} (dt={dt:.3e}): corrector did "
-                                   f"not converge in {self.max_iterations} iterations")
+                                   f"not converge in {limit} iterations")
         self.timings["solve"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         if geometry is not None:

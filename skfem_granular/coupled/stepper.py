@@ -506,7 +506,7 @@ class CoupledStepper:
         from here on (bit for bit).
         """
         data = {"state": self.state, "mesh": self.meshed, "mesh_centers": self.mesh_centers,
-                "mesh_angles": self.mesh_angles,
+                "mesh_angles": self.mesh_angles, "coupling_centers": self.coupling.centers.copy(),
                 "counters": {"remeshes": self.remeshes, "retries": self.retries,
                              "rejections": self.rejections, "euler_steps": self.euler_steps}}
         self.dem.neighbours.invalidate()
@@ -521,7 +521,8 @@ class CoupledStepper:
                  centers=data["mesh_centers"], angles=data["mesh_angles"])
         st.state = data["state"]
         if st.ale and st.state.nodes_n is not None:  # the mesh where the last step left it
-            st.coupling.move(st.reference_space.moved(st.state.nodes_n), dem.positions, None)
+            st.coupling.move(st.reference_space.moved(st.state.nodes_n),
+                             data["coupling_centers"], None)
         c = data["counters"]
         st.remeshes, st.retries = c["remeshes"], c["retries"]
         st.rejections, st.euler_steps = c["rejections"], c["euler_steps"]
