@@ -43,7 +43,8 @@ def test_large_steps_decay_energy(paper, factor):
     assert E[-1] / E0 == pytest.approx(0.5024, abs=0.002)
 
 
-def test_remeshing_creates_no_energy(paper):
+@pytest.mark.parametrize("motion", ["fixed", "ale"])
+def test_remeshing_creates_no_energy(paper, motion):
     """Both BDF2 histories move to each new mesh; interpolation may not add energy.
 
     The total energy keeps falling across every remesh; one interpolation onto a
@@ -52,7 +53,8 @@ def test_remeshing_creates_no_energy(paper):
     """
     p = replace(paper.particles[0], velocity=(0.0, -0.05))
     sc = replace(paper, particles=(p,), time=TimeSpec(t_end=2e-3, dt=1e-4),
-                 effects=Effects(gravity=False), remesh_fraction=0.1)
+                 effects=Effects(gravity=False), remesh_fraction=0.1, mesh_motion=motion,
+                 remesh_travel=0.05)
     sim = Simulation(sc)
     h = sim.run(progress=False).history
     assert sim.remeshes >= 2
@@ -175,8 +177,9 @@ def test_wake_at_reynolds_100_adaptive_steps_keep_the_error_below_tolerance():
     assert F[0] > 0 and abs(F[1]) < 1e-3 * F[0]
 
 
-def _hexagons(particles, box, t_end, dt, **time):
+def _hexagons(particles, box, t_end, dt, motion="auto", **time):
     return Scene.from_dict({
+        "coupling": {"mesh_motion": motion, "remesh_travel": 0.05},
         "domain": {"box": box}, "fluid": {"density": 1000.0, "viscosity": 1e-3},
         "particles": [dict(sides=6, radius=0.5e-3, density=2650.0, core_ratio=0.8, **p)
                       for p in particles],
@@ -210,7 +213,8 @@ def _bounce(h, E):
     return first, last, E[last + 1] / E[first - 1]
 
 
-def test_particle_driven_into_the_floor_bounces_without_creating_energy():
+@pytest.mark.parametrize("motion", ["fixed", "ale"])
+def test_particle_driven_into_the_floor_bounces_without_creating_energy(motion):
     """A hexagon launched at 5 cm/s towards the floor, adaptive steps (tol 1e-3).
 
     The shadow (contact outline) touches the floor while the core (fluid boundary)
@@ -219,7 +223,8 @@ def test_particle_driven_into_the_floor_bounces_without_creating_energy():
     rejections, every mesh valid.
     """
     sim = Simulation(_hexagons([{"center": [2e-3, 0.5e-3], "velocity": [0.0, -0.05]}],
-                               [0.0, 0.0, 4e-3, 3e-3], 3e-3, 2e-5, adaptive=True, tol=1e-3))
+                               [0.0, 0.0, 4e-3, 3e-3], 3e-3, 2e-5, motion, adaptive=True,
+                               tol=1e-3))
     h, meshes = _run_watching_meshes(sim)
     assert h.t[-1] == pytest.approx(3e-3, rel=1e-9) and sim.retries == 0
     assert sim.remeshes >= 2 and meshes[:, 0].max() == 0 and meshes[:, 1].min() > 0
@@ -264,11 +269,13 @@ def test_two_particles_collide_head_on_and_separate():
 
     Measured: contact at 8.7 ms, they separate at 1.2 cm/s (energy of grains + fluid
     after / before 0.49), horizontal momentum of the pair 2e-4 of one grain's, no
-    inverted element on any of the 12 meshes.
+    inverted element on any of the 12 meshes. On the fixed mesh: with the moving mesh the
+    pair's momentum is 1.4e-3 of one grain's (an asymmetry of the mesh motion on this
+    unsymmetric mesh, not yet explained; issue 12 stays open for it).
     """
     parts = [{"center": [2.3e-3, 1.5e-3], "velocity": [0.05, 0.0], "angle": np.pi / 6},
              {"center": [3.7e-3, 1.5e-3], "velocity": [-0.05, 0.0], "angle": np.pi / 6}]
-    sim = Simulation(_hexagons(parts, [0.0, 0.0, 6e-3, 3e-3], 0.012, 2e-5))
+    sim = Simulation(_hexagons(parts, [0.0, 0.0, 6e-3, 3e-3], 0.012, 2e-5, "fixed"))
     h, meshes = _run_watching_meshes(sim)
     assert len(h) == 600 and meshes[:, 0].max() == 0 and meshes[:, 1].min() > 0
     first, last, ratio = _bounce(h, _energy(sim, h))
@@ -280,7 +287,8 @@ def test_two_particles_collide_head_on_and_separate():
     assert gap > 0  # cores never overlapped
 
 
-def test_particle_at_reynolds_100_adaptive_coupled_steps():
+@pytest.mark.parametrize("motion", ["fixed", "ale"])
+def test_particle_at_reynolds_100_adaptive_coupled_steps(motion):
     """A 24-gon (d = 1 mm) launched at 10 cm/s in water (Re = 100), no gravity, adaptive
     coupled BDF2 with remeshing, first step 0.2 ms (far too large for the start).
 
@@ -295,7 +303,8 @@ def test_particle_at_reynolds_100_adaptive_coupled_steps():
                            "density": 2650.0, "velocity": [0.1, 0.0]}],
             "mesh": {"kind": "graded", "delta_l": 0.13e-3},
             "time": {"t_end": 5e-3, "dt": 2e-4, "adaptive": True, "tol": 1e-3},
-            "effects": {"gravity": False}}
+            "effects": {"gravity": False},
+            "coupling": {"mesh_motion": motion, "remesh_travel": 0.1}}
     sim = Simulation(Scene.from_dict(data, name="wake"))
     h = sim.run(progress=False).history
     assert h.t[-1] == pytest.approx(5e-3, rel=1e-9) and sim.retries == 0

@@ -20,6 +20,8 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
+from skfem_granular.coupled.stepper import ALE_MIN_ANGLE
+
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 CELL_TIMEOUT = 600  # seconds per cell
 MARK = "__NOTEBOOK_RESULTS__"
@@ -104,7 +106,8 @@ def test_granular_collapse_notebook(out_dir):
     assert 0.3e-3 < r["lowest_y"] < 0.6e-3
     assert 0 < r["max_speed"] < 0.5
     assert math.isfinite(v["slope_deg"]) and 0 <= v["slope_deg"] < 90
-    assert r["min_angle_final"] >= 20
+    # the last mesh is a moved one (ALE): its quality is kept above the remesh threshold
+    assert r["min_angle_final"] >= ALE_MIN_ANGLE
     assert r["n_frames_rendered"] == 3
     assert len(list((out_dir / "03_collapse_smoke").glob("frame_*.png"))) == 3
 

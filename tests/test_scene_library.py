@@ -13,8 +13,8 @@ from skfem_granular.scene import Scene, bundled, bundled_scenes
 PAPER = ("collapse", "collapse_group", "single_particle", "single_particle_fine")
 #: issue 14's sedimentation and repose checks
 SEDIMENTATION = ("dkt_two_disks", "migration_off_centre", "repose_hexagons",
-                 "settling_disk_channel", "settling_disk_k3", "settling_hexagon",
-                 "settling_rectangle")
+                 "settling_disk_channel", "settling_disk_k3", "settling_disk_k8_tall",
+                 "settling_hexagon", "settling_rectangle")
 NAMES = tuple(sorted(PAPER + SEDIMENTATION))
 PACKAGE = Path(skfem_granular.__file__).resolve().parent
 
@@ -128,6 +128,9 @@ def test_sedimentation_scenes_keep_the_published_set_ups():
     assert [tuple(np.round(q.polygon.centroid, 6)) for q in d.particles] == [(0.01, 0.068),
                                                                           (0.00999, 0.072)]
     assert all(q.density / q.core_ratio**2 == pytest.approx(1010.0) for q in d.particles)
+    tall = sc["settling_disk_k8_tall"]
+    assert tall.domain == (0.0, 0.0, 0.02, 0.16) and tall.particles[0].density == p.density
+    assert tall.particles[0].polygon.vertices.shape == (2, 32) and tall.mesh == g.mesh
     k3 = sc["settling_disk_k3"]
     assert k3.domain[2] == 3e-3 and k3.particles[0].polygon.vertices.shape == (2, 24)
     rep = sc["repose_hexagons"]

@@ -83,7 +83,8 @@ def test_dry_scene_builds_no_mesh(paper):
 
 
 def test_stokes_scene_uses_one_factorisation(paper):
-    sc = _short(paper, effects=Effects(convection=False))
+    """On a fixed mesh (a moving one changes the operator every step)."""
+    sc = _short(paper, effects=Effects(convection=False), mesh_motion="fixed")
     sim = Simulation(sc)
     res = sim.run(progress=False)
     assert sim.coupling.solver.stats.factorizations == 2  # backward Euler, then BDF2
@@ -97,7 +98,8 @@ def test_warning_when_convection_off_at_high_reynolds(paper):
     assert any("Reynolds" in w for w in warnings)
 
 
-def test_remeshing_keeps_velocity_continuous(paper):
+@pytest.mark.parametrize("motion", ["fixed", "ale"])
+def test_remeshing_keeps_velocity_continuous(paper, motion):
     p = replace(paper.particles[0], velocity=(0.0, -0.05))
     sc = replace(
         paper,
@@ -105,6 +107,8 @@ def test_remeshing_keeps_velocity_continuous(paper):
         time=TimeSpec(t_end=2e-3, dt=1e-4),
         effects=Effects(gravity=False),
         remesh_fraction=0.1,
+        mesh_motion=motion,
+        remesh_travel=0.05,  # ALE: remesh after 5 % of the radius (several times here)
     )
     sim = Simulation(sc)
     h = sim.run(progress=False).history
@@ -189,7 +193,8 @@ def test_paper_single_particle_fine_vs_graded(paper):
     assert np.abs(vg - vu).max() < 0.02 * np.abs(vu).max()
 
 
-def test_grains_on_the_floor_contacts_and_remeshing(tmp_path):
+@pytest.mark.parametrize("motion", ["fixed", "ale"])
+def test_grains_on_the_floor_contacts_and_remeshing(tmp_path, motion):
     """A 2 x 2 block of hexagons just above the floor: contacts, DEM subcycling, remeshing."""
     import meshing
 
@@ -208,7 +213,7 @@ def test_grains_on_the_floor_contacts_and_remeshing(tmp_path):
         },
         "mesh": {"kind": "group", "delta_l": 0.2e-3},
         "time": {"t_end": 5e-3, "dt": 2e-4},
-        "coupling": {"remesh_fraction": 0.05},
+        "coupling": {"remesh_fraction": 0.05, "mesh_motion": motion, "remesh_travel": 0.02},
     }
     sc = Scene.from_dict(data, name="floor")
     sim = Simulation(sc, output_dir=tmp_path)

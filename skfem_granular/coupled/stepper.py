@@ -166,8 +166,8 @@ class CoupledStepper:
 
     @property
     def ale(self) -> bool:
-        """Whether the mesh moves with the particles (``scene.mesh_motion == "ale"``)."""
-        return self.scene.mesh_motion == "ale"
+        """Whether the mesh moves with the particles (:attr:`Scene.moving_mesh`)."""
+        return self.scene.moving_mesh
 
     def _set_mesh(self, mesh, centers=None, angles=None):
         old = getattr(self, "coupling", None)
@@ -301,9 +301,10 @@ class CoupledStepper:
         if self.ale:
             geometry = self._geometry(a0, a1, a2, q_n, s.q_prev if dt_prev is not None else None,
                                       q_dem if self.contacts_active else None)
+        moving = {} if geometry is None else {"geometry": geometry}
         res = self.coupling.step(step, dt_prev, s.u_n, u_prev, xi_n, xi_prev, F_ext, T_ext,
                                  s.t + step, p_guess=s.p_n, u_guess=u_guess, xi_guess=xi_guess,
-                                 geometry=geometry)
+                                 **moving)
         xi_new = res["xi"]
         if self.contacts_active:
             q_new = q_dem

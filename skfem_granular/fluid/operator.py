@@ -97,7 +97,8 @@ class NavierStokesOperator:
                               shape=Kv.shape)
         new._velocity_blocks = {}
         new._conv_positions = None
-        new.__dict__.pop("_reduced_pattern", None)
+        for cached in ("_reduced_pattern", "_pressure_weights", "_free_pressure_blocks"):
+            new.__dict__.pop(cached, None)  # geometric caches: the moved mesh's own
         if self._body_force_spec is not None:
             new.f = new._body_force(self._body_force_spec)
         return new

@@ -36,7 +36,9 @@ class Scene:
     remesh_fraction : float
         Fixed mesh: remesh when a particle has moved by this fraction of its
         outline edge length since the mesh was built.
-    mesh_motion : {"fixed", "ale"}
+    mesh_motion : {"auto", "ale", "fixed"}
+        ``"auto"`` (default): ``"ale"`` with the monolithic coupling, ``"fixed"``
+        with the partitioned one (see :attr:`moving_mesh`).
         ``"fixed"``: the mesh stays until a remesh (the particle boundary lags
         behind the particle by up to ``remesh_fraction`` of an edge).
         ``"ale"``: the mesh moves with the particles every step (outline nodes
@@ -68,12 +70,19 @@ class Scene:
     effects: Effects = field(default_factory=Effects)
     coupling: str = "monolithic"
     remesh_fraction: float = 0.25
-    mesh_motion: str = "fixed"
+    mesh_motion: str = "auto"
     remesh_travel: float = 1.0
     output_dir: str | None = None
     vtu_every: int = 10
     checkpoint_every: int = 0
     name: str = "scene"
+
+    @property
+    def moving_mesh(self) -> bool:
+        """Whether the mesh moves with the particles (ALE): ``mesh_motion`` resolved."""
+        if self.mesh_motion == "auto":
+            return self.coupling == "monolithic"
+        return self.mesh_motion == "ale"
 
     def __post_init__(self):
         for name, value, cls, what in (
@@ -115,9 +124,9 @@ class Scene:
                 f"coupling.scheme = {self.coupling!r}: must be 'monolithic' or 'partitioned'"
             )
         num("coupling", "remesh_fraction", self.remesh_fraction, lo=0, hi=1.0)
-        if self.mesh_motion not in ("fixed", "ale"):
-            raise ValueError(
-                f"coupling.mesh_motion = {self.mesh_motion!r}: must be 'fixed' or 'ale'")
+        if self.mesh_motion not in ("auto", "fixed", "ale"):
+            raise ValueError(f"coupling.mesh_motion = {self.mesh_motion!r}: must be 'auto', "
+                             "'ale' or 'fixed'")
         if self.mesh_motion == "ale" and self.coupling != "monolithic":
             raise ValueError("coupling.mesh_motion = 'ale': needs coupling.scheme = "
                              "'monolithic' (the partitioned scheme runs on a fixed mesh)")

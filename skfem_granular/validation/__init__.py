@@ -1,0 +1,21 @@
+"""Validation routes that do not depend on the coupled stepper (issue 14).
+
+:mod:`.terminal`: the terminal settling velocity of a disk from steady
+Navier-Stokes solves in the particle's frame
+(:func:`terminal_velocity_frame_solve`). :mod:`.measures`: the quantities the
+sedimentation benchmarks extract from a run's history (maximum particle
+Reynolds number, terminal velocity, kissing and tumbling times, lateral
+offset, orientation, angle of repose).
+"""
+
+from .terminal import (
+    FrameProblem,
+    TerminalResult,
+    faxen_drag_coefficient,
+    frame_drag,
+    frame_mesh,
+    terminal_velocity_frame_solve,
+)
+
+__all__ = ["FrameProblem", "TerminalResult", "faxen_drag_coefficient", "frame_drag",
+           "frame_mesh", "terminal_velocity_frame_solve"]
