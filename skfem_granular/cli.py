@@ -1,10 +1,14 @@
 """The ``skfem-granular`` command.
 
-- ``skfem-granular run SCENE [--mesh graded|uniform|group] [--out DIR] [--t-end T] [--dt DT]``
-  runs a scene (a TOML file, or the name of a bundled scene: ``run single-particle``) and
-  writes ``flow.pvd`` (VTU frames), ``particles.pvd``, ``history.csv`` and ``summary.json``
-  into the output directory;
+- ``skfem-granular run SCENE [--mesh graded|uniform|group] [--out DIR] [--t-end T] [--dt DT]
+  [--tol TOL] [--vtu-every N] [--checkpoint-every N]`` runs a scene (a TOML file, or the name
+  of a bundled scene: ``run single-particle``) and writes ``flow.pvd`` (VTU frames),
+  ``particles.pvd``, ``history.csv`` (growing as the run goes) and ``summary.json`` into the
+  output directory, and ``checkpoint.npz`` every N steps;
   ``skfem-granular run --resume DIR [--t-end T]`` continues from its checkpoint.
+  SIGINT (Ctrl-C) or SIGTERM stop a run at the end of the current step with everything
+  written and a checkpoint to resume from; the exit code is then 128 + the signal's number
+  (130, 143). A run that fails (a step that does not converge) exits with code 1.
 - ``skfem-granular scenes`` lists the bundled scenes (name and first comment line).
 - ``skfem-granular render DIR --png PATH | --animation PATH`` draws a run's output.
 - ``skfem-granular study single-particle|faxen`` runs an accuracy-vs-cost study.
@@ -38,14 +42,22 @@ def _parser() -> argparse.ArgumentParser:
                      help="scene file (path/to/scene.toml) or bundled scene name, e.g. "
                           "single-particle (see 'skfem-granular scenes')")
     run.add_argument("--resume", metavar="DIR",
-                     help="continue the run whose checkpoint.pkl is in DIR (--t-end may extend it)")
-    run.add_argument("--mesh", choices=["graded", "uniform", "group"], help="override mesh.kind")
+                     help="continue the run whose checkpoint.npz is in DIR (--t-end may extend it)")
+    run.add_argument("--mesh", choices=["auto", "graded", "uniform", "group", "field"],
+                     help="override mesh.kind")
+    run.add_argument("--mesh-motion", choices=["auto", "ale", "fixed"],
+                     help="override coupling.mesh_motion (ale: the mesh follows the particles)")
     run.add_argument("--out", help="output directory (default: the scene's output.directory)")
     run.add_argument("--t-end", type=float, help="override time.t_end (s)")
     run.add_argument("--dt", type=float, help="override time.dt (s)")
     run.add_argument("--tol", type=float,
                      help="adaptive steps with this local error tolerance (time.adaptive, "
                           "time.tol); time.dt becomes the first and largest step")
+    run.add_argument("--vtu-every", type=int, metavar="N",
+                     help="override output.vtu_every: a frame every N steps (0: the last only)")
+    run.add_argument("--checkpoint-every", type=int, metavar="N",
+                     help="override output.checkpoint_every: checkpoint.npz every N steps "
+                          "(0: none; SIGINT/SIGTERM always write one)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     sub.add_parser("scenes", help="list the bundled scenes (names for 'run')")
     ren = sub.add_parser("render", help="picture (PNG) or animation (GIF/MP4) of a run's output")
@@ -66,7 +78,8 @@ def _parser() -> argparse.ArgumentParser:
 def format_summary(s: dict) -> str:
     """Human-readable run summary."""
     lines = [
-        f"scene: {s['scene']}   coupling: {s['coupling']}   particles: {s['particles']}",
+        f"scene: {s['scene']}   coupling: {s['coupling']} ({s.get('mesh_motion')} mesh)   "
+        f"particles: {s['particles']}",
         "effects: " + ", ".join(f"{k}={'on' if v else 'off'}" for k, v in s["effects"].items()),
     ]
     if "mesh" in s:
@@ -130,9 +143,11 @@ def main(argv=None) -> int:
 
     try:
         if args.resume is not None:
-            if args.scene or args.mesh or args.dt is not None or args.out or args.tol:
-                raise ValueError("--resume DIR takes no scene, --mesh, --dt, --tol or --out (the "
-                                 "checkpoint holds them); only --t-end may change")
+            if (args.scene or args.mesh or args.dt is not None or args.out or args.tol
+                    or args.vtu_every is not None or args.checkpoint_every is not None):
+                raise ValueError("--resume DIR takes no scene, --mesh, --dt, --tol, --out, "
+                                 "--vtu-every or --checkpoint-every (the checkpoint holds "
+                                 "them); only --t-end may change")
             sim = Simulation.resume(args.resume, t_end=args.t_end)
             return _finish_run(sim, args)
         if not args.scene:
@@ -140,6 +155,8 @@ def main(argv=None) -> int:
         scene = Scene.from_toml(_scene_path(args.scene))
         if args.mesh:
             scene = scene.with_mesh(args.mesh)
+        if args.mesh_motion:
+            scene = replace(scene, mesh_motion=args.mesh_motion)
         if args.t_end is not None or args.dt is not None or args.tol is not None:
             time_kw = {}
             if args.t_end is not None:
@@ -149,6 +166,10 @@ def main(argv=None) -> int:
             if args.tol is not None:
                 time_kw.update(adaptive=True, tol=args.tol)
             scene = replace(scene, time=replace(scene.time, **time_kw))
+        if args.vtu_every is not None:
+            scene = replace(scene, vtu_every=args.vtu_every)
+        if args.checkpoint_every is not None:
+            scene = replace(scene, checkpoint_every=args.checkpoint_every)
         out = args.out or scene.output_dir or f"out/{scene.name}"
         _check_out("--out" if args.out else "output.directory", out)
         sim = Simulation(scene, output_dir=out)
@@ -187,9 +208,23 @@ def _scenes() -> int:
 
 
 def _finish_run(sim, args) -> int:
-    result = sim.run(progress=not args.no_progress)
+    import signal
+
+    from .simulation import SimulationError
+
+    try:
+        result = sim.run(progress=not args.no_progress)
+    except SimulationError as exc:
+        print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 1
     print(format_summary(result.summary))
     print(f"output: {result.output_dir}/ (flow.pvd, particles.pvd, history.csv, summary.json)")
+    stopped = result.summary.get("stopped_by")
+    if stopped:
+        t = result.summary["t_end"]
+        print(f"stopped by {stopped} at t = {t:.6g} s; continue with: skfem-granular run "
+              f"--resume {result.output_dir}", file=sys.stderr)
+        return 128 + int(getattr(signal, stopped))
     return 0
 
 

@@ -102,7 +102,7 @@ def test_hundred_grains_remeshing_conserves_mass_volume_count():
                      "jitter": 0.3},
             "mesh": {"kind": "group", "delta_l": 0.25e-3},
             "time": {"t_end": 6e-3, "dt": 2e-4},
-            "coupling": {"remesh_fraction": 0.005}}
+            "coupling": {"remesh_fraction": 0.005, "remesh_travel": 0.005}}
     sim = Simulation(Scene.from_dict(data, name="hundred"))
     mass0 = sim.dem.mass.sum()
     h = sim.run(progress=False).history
