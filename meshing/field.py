@@ -308,16 +308,9 @@ def _merge_close(X: NDArray[np.float64], spacing: NDArray[np.float64]
 
 def _pslg(layout: Layout) -> dict:
     """``triangle`` input of a layout (walls, outlines, fixed and free nodes)."""
-    from .pslg import wall_segments
+    from .pslg import boundary_segments
 
-    segs, marks = wall_segments(layout)
-    off = layout.n_wall
-    nd = layout.n_corners
-    for p, P in enumerate(layout.particles):
-        k = np.arange(P.shape[1])
-        segs = np.vstack([segs, np.column_stack([off + k, off + np.roll(k, -1)])])
-        marks = np.append(marks, np.full(k.size, 2 + nd + p))
-        off += P.shape[1]
+    segs, marks, _ = boundary_segments(layout)
     return {"vertices": layout.points().T, "segments": segs, "segment_markers": marks[:, None],
             "holes": np.array([centroid(P) for P in layout.particles])}
 

@@ -114,6 +114,23 @@ class Triangulation:
     markers: NDArray[np.int64]
 
 
+
+def boundary_segments(layout: Layout):
+    """Wall and particle-outline segments of a layout with their markers.
+
+    Returns ``(segments (n, 2), markers (n,), index of the first node after the outlines)``;
+    particle ``p``'s outline carries the marker ``2 + n_corners + p``.
+    """
+    segs, marks = wall_segments(layout)
+    off = layout.n_wall
+    nd = layout.n_corners
+    for p, P in enumerate(layout.particles):
+        k = np.arange(P.shape[1])
+        segs = np.vstack([segs, np.column_stack([off + k, off + np.roll(k, -1)])])
+        marks = np.append(marks, np.full(k.size, 2 + nd + p))
+        off += P.shape[1]
+    return segs, marks, off
+
 def triangulate(layout: Layout, quality: str = "") -> Triangulation:
     """Constrained Delaunay triangulation of a layout.
 
@@ -134,14 +151,7 @@ def triangulate(layout: Layout, quality: str = "") -> Triangulation:
         user input.
     """
     pts = layout.points()
-    segs, marks = wall_segments(layout)
-    off = layout.n_wall
-    nd = layout.n_corners
-    for p, P in enumerate(layout.particles):
-        k = np.arange(P.shape[1])
-        segs = np.vstack([segs, np.column_stack([off + k, off + np.roll(k, -1)])])
-        marks = np.append(marks, np.full(k.size, 2 + nd + p))
-        off += P.shape[1]
+    segs, marks, off = boundary_segments(layout)
     if layout.fixed_segments.size:
         fs = layout.fixed_segments
         segs = np.vstack([segs, np.where(fs >= 0, off + fs, -1 - fs)])
