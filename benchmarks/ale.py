@@ -73,7 +73,8 @@ def main():
                 rec[m]["iterations_mean"] = float(res.history.iterations.mean())
         for v in rec.values():
             v["wall_median_s"] = statistics.median(v["walls"])
-        rec["wall_ratio_ale_over_fixed"] = rec["ale"]["wall_median_s"] / rec["fixed"]["wall_median_s"]
+        rec["wall_ratio_ale_over_fixed"] = (rec["ale"]["wall_median_s"]
+                                            / rec["fixed"]["wall_median_s"])
         rec["vy_rel_diff"] = abs(rec["ale"]["vy_1ms"] / rec["fixed"]["vy_1ms"] - 1)
         paper[name] = rec
     out["single_particle"] = paper

@@ -364,6 +364,189 @@ LIB = [
 ]
 
 
+# ---------------------------------------------------------------- crafted checkpoints
+_VALID_CHECKPOINT = {}
+
+
+def _valid_checkpoint(tmp):
+    """Header and arrays of a real checkpoint (the single particle after 2 steps; made once)."""
+    from skfem_granular.io import plain
+
+    if not _VALID_CHECKPOINT:
+        sc = replace(Scene.bundled("single_particle"), time=TimeSpec(2e-5, 1e-5),
+                     checkpoint_every=2)
+        Simulation(sc, output_dir=tmp / "valid").run(progress=False)
+        _VALID_CHECKPOINT["data"] = plain.read(tmp / "valid" / "checkpoint.npz")
+    header, arrays = _VALID_CHECKPOINT["data"]
+    import copy
+
+    return copy.deepcopy(header), {k: v.copy() for k, v in arrays.items()}
+
+
+def _node(header, path):
+    """The header node of a field path (``stepper.state.u_n``)."""
+    node = header["content"]
+    for part in path.split(".") if path else []:
+        if "$dict" in node:
+            node = node["$dict"][part]
+        elif "$object" in node:
+            node = node["fields"][part]
+        else:
+            node = node["$tuple"][int(part)]
+    return node
+
+
+def _crafted(tmp, mutate, raw=None):
+    """Resume from a valid checkpoint changed by ``mutate(header, arrays)``."""
+    import json
+    import zipfile
+
+    from skfem_granular.io import plain
+
+    header, arrays = _valid_checkpoint(tmp)
+    mutate(header, arrays)
+    d = tmp / "crafted"
+    d.mkdir(exist_ok=True)
+    if raw is None:
+        plain.write(d / "checkpoint.npz", header, arrays)
+    else:  # members written as given (plain.write would refuse them)
+        with zipfile.ZipFile(d / "checkpoint.npz", "w") as zf:
+            zf.writestr("header.json", json.dumps(header))
+            for k, v in arrays.items():
+                with zf.open(f"{k}.npy", "w") as f:
+                    np.lib.format.write_array(f, v, allow_pickle=False)
+            for name, blob in raw.items():
+                zf.writestr(name, blob)
+    return Simulation.resume(d)
+
+
+def _set(path, value):
+    def mutate(h, a):
+        parent, key = path.rsplit(".", 1) if "." in path else ("", path)
+        node = _node(h, parent)
+        (node["$dict"] if "$dict" in node else node["fields"])[key] = value
+    return mutate
+
+
+def _array(key, change):
+    def mutate(h, a):
+        a[key] = change(a[key])
+    return mutate
+
+
+def _both(path, change):
+    """Array and header changed alike (the file is consistent, the values are not)."""
+    def mutate(h, a):
+        node = _node(h, path)
+        a[node["$array"]] = change(a[node["$array"]])
+        node["shape"] = list(a[node["$array"]].shape)
+    return mutate
+
+
+def _nan_at(i):
+    def change(x):
+        x = x.copy()
+        x.flat[i] = np.nan
+        return x
+    return change
+
+
+def _object_npy():
+    import io
+
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    return buf.getvalue()
+
+
+def _pop_field(path):
+    def mutate(h, a):
+        parent, key = path.rsplit(".", 1)
+        node = _node(h, parent)
+        arr = node["fields"].pop(key)
+        a.pop(arr["$array"], None) if isinstance(arr, dict) and "$array" in arr else None
+    return mutate
+
+
+def _extra(h, a):
+    h["content"]["$dict"]["evil"] = 1
+
+
+CHECKPOINTS = [
+    ("checkpoint-array-shape-vs-header",
+     lambda t: _crafted(t, _array("stepper.state.u_n", lambda x: x[:-1])),
+     ["stepper.state.u_n: array of shape (1467,) in the file, (1468,) in the header"]),
+    ("checkpoint-shape-vs-mesh",
+     lambda t: _crafted(t, _both("stepper.state.u_n", lambda x: x[:-1])),
+     ["stepper.state.u_n: shape (1467,): must be (1468,)"]),
+    ("checkpoint-particle-shape",
+     lambda t: _crafted(t, _both("dem.q", lambda x: np.zeros((3, 2)))),
+     ["dem.q: shape (3, 2): must be (3, 1)"]),
+    ("checkpoint-nan-fluid",
+     lambda t: _crafted(t, _array("stepper.state.u_prev", _nan_at(5))),
+     ["stepper.state.u_prev: contains NaN or inf", "must be finite"]),
+    ("checkpoint-nan-dem", lambda t: _crafted(t, _array("dem.v", _nan_at(1))),
+     ["dem.v: contains NaN or inf"]),
+    ("checkpoint-nan-scalar",
+     lambda t: _crafted(t, _set("stepper.state.dt_prev", {"$float": "nan"})),
+     ["stepper.state.dt_prev: = nan: must be a finite number"]),
+    ("checkpoint-unknown-version", lambda t: _crafted(t, lambda h, a: h.update(version=99)),
+     ["version = 99", "reads checkpoint version 3 only"]),
+    ("checkpoint-other-format",
+     lambda t: _crafted(t, lambda h, a: h.update(format="something else")),
+     ["format = 'something else'", "not a 'skfem-granular checkpoint' file"]),
+    ("checkpoint-extra-header-key",
+     lambda t: _crafted(t, lambda h, a: h.update(run="import os")),
+     ["header: unknown key 'run'"]),
+    ("checkpoint-extra-content-key", lambda t: _crafted(t, _extra),
+     ["evil: unknown key", "a checkpoint holds"]),
+    ("checkpoint-extra-field", lambda t: _crafted(t, _set("stepper.state.zzz", 1)),
+     ["stepper.state.zzz: unknown field of skfem_granular.coupled.state.CoupledState"]),
+    ("checkpoint-missing-field", lambda t: _crafted(t, _pop_field("stepper.state.u_prev")),
+     ["stepper.state.u_prev: missing field"]),
+    ("checkpoint-extra-stepper-entry",
+     lambda t: _crafted(t, _set("stepper.evil", 1)),
+     ["stepper.evil: unknown key (this version does not have it)"]),
+    ("checkpoint-extra-array",
+     lambda t: _crafted(t, lambda h, a: a.update(evil=np.zeros(3))),
+     ["evil: array in the file that the header does not name"]),
+    ("checkpoint-unknown-type",
+     lambda t: _crafted(t, lambda h, a: _node(h, "stepper.state").update({"$object": "os.system"})),
+     ["stepper.state: type 'os.system' is not one this file may hold"]),
+    ("checkpoint-object-array",
+     lambda t: _crafted(t, lambda h, a: None, raw={"evil.npy": _object_npy()}),
+     ["evil: not a plain array", "allow_pickle=False"]),
+    ("checkpoint-float32-array",
+     lambda t: _crafted(t, _array("dem.v", lambda x: x.astype(np.float32)), raw={}),
+     ["dem.v: array of dtype float32: must be one of float64, int64, bool"]),
+    ("checkpoint-bad-scene-value",
+     lambda t: _crafted(t, _set("scene.particles.0.density", -1.0)),
+     ["scene: particles[0].density = -1.0", "> 0"]),
+    ("checkpoint-mesh-index",
+     lambda t: _crafted(t, _array("stepper.mesh.mesh.t", lambda x: x + 10**6)),
+     ["stepper.mesh.mesh: t: vertex indices must be in [0, 198)"]),
+    ("checkpoint-frame-path",
+     lambda t: _crafted(t, _set("frames.flow", [{"$tuple": [0.0, "../../etc/x.vtu"]}])),
+     ["frames.flow[0]", "must be (t, 'flow_NNNNN.vtu')"]),
+    ("checkpoint-history-rows",
+     lambda t: _crafted(t, _set("k", 5)), ["k: = 5: must equal the number of history rows (2)"]),
+    ("checkpoint-not-a-zip",
+     lambda t: ((t / "nz").mkdir(), (t / "nz" / "checkpoint.npz").write_text("PK?"),
+                Simulation.resume(t / "nz")),
+     ["not a readable file of this format"]),
+]
+LIB += CHECKPOINTS
+
+
+def test_cli_resume_crafted_checkpoint_one_line(tmp_path, capsys):
+    with pytest.raises(ValueError):
+        _crafted(tmp_path, _array("stepper.state.u_prev", _nan_at(0)))
+    code = main(["run", "--resume", str(tmp_path / "crafted"), "--no-progress"])
+    lines = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(lines) == 1, lines
+    assert "stepper.state.u_prev: contains NaN or inf" in lines[0]
+
+
 def _param(row):
     if hasattr(row, "marks"):  # already a pytest.param (an xfail row)
         return pytest.param(*row.values[1:], marks=row.marks, id=row.id)

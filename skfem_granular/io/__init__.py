@@ -1,14 +1,18 @@
-"""Output: VTU files and PVD time series (meshio), time-series tables, all written atomically.
+"""Output: VTU files and PVD time series (meshio), time-series tables, plain-data files.
 
 Every file is written to a temporary name in the target directory and then
 renamed, so that a run killed at any moment leaves each earlier file complete
-and readable.
+and readable; a table's CSV file grows by appended, synced rows
+(:class:`CSVLog`). :mod:`.plain` stores nested values as numpy arrays and a
+JSON header (checkpoints), and reads them back strictly, without pickle.
 """
 
-from .files import atomic_write, check_writable
+from . import plain
+from .files import PARTIAL_PREFIX, atomic_write, check_writable, partial_files, remove_partial_files
 from .pvd import PVDSeries, read_pvd
-from .table import History, Table
+from .table import CSVLog, History, Table, read_csv
 from .vtu import write_vtu
 
-__all__ = ["History", "PVDSeries", "Table", "atomic_write", "check_writable", "read_pvd",
-           "write_vtu"]
+__all__ = ["PARTIAL_PREFIX", "CSVLog", "History", "PVDSeries", "Table", "atomic_write",
+           "check_writable", "partial_files", "plain", "read_csv", "read_pvd",
+           "remove_partial_files", "write_vtu"]

@@ -1,7 +1,10 @@
 """Files written so that a run killed at any moment leaves each one complete.
 
 Every file goes to a temporary name in the target directory and is then
-renamed onto its final name (an atomic operation on POSIX file systems).
+renamed onto its final name (an atomic operation on POSIX file systems). The
+temporary names start with :data:`PARTIAL_PREFIX` (``.partial-``): a run
+killed while writing leaves at most such a hidden file next to the complete
+ones, and :func:`remove_partial_files` (called when a run resumes) deletes it.
 """
 
 from __future__ import annotations
@@ -10,6 +13,9 @@ import functools
 import os
 import tempfile
 from pathlib import Path
+
+#: Prefix of the temporary files :func:`atomic_write` renames onto their final names.
+PARTIAL_PREFIX = ".partial-"
 
 
 def check_writable(path: Path) -> None:
@@ -36,7 +42,7 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write(path, write) -> Path:
+def atomic_write(path, write, *, fsync: bool = False) -> Path:
     """Call ``write(tmp_path)`` and rename the result onto ``path``.
 
     Parameters
@@ -45,11 +51,16 @@ def atomic_write(path, write) -> Path:
         Final file name.
     write : callable
         ``write(tmp)`` writes the whole file to the path ``tmp`` (same suffix).
+    fsync : bool, optional
+        Also force the file's data to the disk before the rename (and the
+        directory entry after it), so that the file survives a power failure
+        too, not only a killed process.
     """
     path = Path(path)
     check_writable(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f"{PARTIAL_PREFIX}{path.stem}-", suffix=path.suffix,
+                                   dir=path.parent)
     except OSError as exc:
         raise ValueError(f"output path {str(path)!r}: cannot write ({exc.strerror})") from None
     os.close(fd)
@@ -57,8 +68,53 @@ def atomic_write(path, write) -> Path:
         write(tmp)
         # mkstemp makes the file private (0600); give it the usual permissions
         os.chmod(tmp, 0o666 & ~_umask())
+        if fsync:
+            _fsync_path(tmp)
         os.replace(tmp, path)
+        if fsync:
+            _fsync_directory(path.parent)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
     return path
+
+
+def _fsync_path(path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_directory(directory) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:  # some systems cannot open directories; the rename is done anyway
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def partial_files(directory) -> list[Path]:
+    """The temporary files a killed writer left in ``directory`` (``.partial-*``)."""
+    d = Path(directory)
+    if not d.is_dir():
+        return []
+    return sorted(p for p in d.iterdir() if p.name.startswith(PARTIAL_PREFIX) and p.is_file())
+
+
+def remove_partial_files(directory) -> list[Path]:
+    """Delete the temporary files a killed writer left in ``directory``; returns them."""
+    gone = []
+    for p in partial_files(directory):
+        try:
+            p.unlink()
+            gone.append(p)
+        except FileNotFoundError:
+            pass
+    return gone

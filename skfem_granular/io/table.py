@@ -1,15 +1,25 @@
-"""Time-series tables: one row per step, columns as arrays, CSV on disk (atomic).
+"""Time-series tables: one row per step, columns as arrays, CSV on disk.
 
 :class:`Table` is the one implementation; :class:`History` is the table of a
 coupled run (what :class:`~skfem_granular.simulation.Simulation` records), and
 :class:`skfem_granular.dem.History` the table of a dry DEM run.
+:meth:`Table.to_csv` writes a whole table atomically; :class:`CSVLog` keeps a
+CSV file growing with the table while a run goes on (header once, rows
+appended, flushed to the disk on demand), the same text as
+:meth:`Table.to_csv` at every flush; :func:`read_csv` reads either back.
 """
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 
 from .files import atomic_write
+
+#: number format of every CSV value: full double precision
+CSV_FORMAT = "%.17g"
 
 
 class Table:
@@ -49,6 +59,26 @@ class Table:
             return np.array([r[name] for r in self.rows]).reshape(len(self.rows), self.K)
         raise AttributeError(name)
 
+    def wide_header(self) -> list[str]:
+        """Column names of the wide layout: step columns, then ``x_0``, ``y_0``, ... by particle."""
+        return list(self.STEP_COLUMNS) + [f"{c}_{k}" for k in range(self.K)
+                                          for c in self.PARTICLE_COLUMNS]
+
+    def wide_lines(self, start: int = 0, stop: int | None = None) -> str:
+        """Rows ``start:stop`` in the wide layout as CSV text (one line per row, ``\n`` ends)."""
+        rows = self.rows[start:stop]
+        if not rows:
+            return ""
+        ncol = len(self.STEP_COLUMNS) + self.K * len(self.PARTICLE_COLUMNS)
+        fmt = ",".join([CSV_FORMAT] * ncol) + "\n"
+        out = []
+        for r in rows:
+            vals = [float(r.get(c, np.nan)) for c in self.STEP_COLUMNS]
+            for k in range(self.K):
+                vals.extend(float(r[c][k]) for c in self.PARTICLE_COLUMNS)
+            out.append(fmt % tuple(vals))
+        return "".join(out)
+
     def to_csv(self, path, layout: str = "wide") -> None:
         """Write the table atomically, every number to full precision (``%.17g``).
 
@@ -64,10 +94,10 @@ class Table:
         T, K = len(self.rows), self.K
         steps, parts = self.STEP_COLUMNS, self.PARTICLE_COLUMNS
         if layout == "wide":
-            head = list(steps) + [f"{c}_{k}" for k in range(K) for c in parts]
-            cols = ([getattr(self, c) for c in steps]
-                    + [getattr(self, c)[:, k] for k in range(K) for c in parts])
-        elif layout == "long":
+            text = ",".join(self.wide_header()) + "\n" + self.wide_lines()
+            atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+            return
+        if layout == "long":
             first, rest = steps[:1], steps[1:]
             head = list(first) + ["particle"] + list(parts) + list(rest)
             cols = ([np.repeat(getattr(self, c), K) for c in first]
@@ -79,7 +109,7 @@ class Table:
         data = np.column_stack(cols) if T else np.zeros((0, len(head)))
 
         def write(tmp):
-            np.savetxt(tmp, data, delimiter=",", header=",".join(head), comments="", fmt="%.17g")
+            np.savetxt(tmp, data, delimiter=",", header=",".join(head), comments="", fmt=CSV_FORMAT)
 
         atomic_write(path, write)
 
@@ -106,3 +136,108 @@ class History(Table):
         """
         self.add_row(t=t, dt=dt, iterations=iterations, fluid_energy=float(fluid_energy),
                      error=float(error), **particle)
+
+
+class CSVLog:
+    """A table's wide CSV file, kept up to date while rows are added.
+
+    Opening it writes the header and the rows the table already has (one
+    atomic write, so a resumed run's file starts as exactly the rows it
+    resumes from); :meth:`flush` appends the rows added since, in one write,
+    and forces them to the disk (``flush`` + ``os.fsync``). A process killed
+    at any moment leaves a file whose complete lines are the rows up to the
+    last flush (:func:`read_csv` drops a torn last line, should a kill land
+    inside an append).
+
+    Parameters
+    ----------
+    table : Table
+        The table whose rows are written (kept in memory as usual).
+    path : str or Path
+        The CSV file (replaced).
+
+    Examples
+    --------
+    >>> log = CSVLog(history, "out/history.csv")        # doctest: +SKIP
+    >>> history.append(...); log.flush()                 # doctest: +SKIP
+    >>> log.close()                                      # doctest: +SKIP
+    """
+
+    def __init__(self, table: Table, path):
+        self.table = table
+        self.path = Path(path)
+        self.written = len(table.rows)
+        text = ",".join(table.wide_header()) + "\n" + table.wide_lines(0, self.written)
+        atomic_write(self.path, lambda tmp: Path(tmp).write_text(text))
+        self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+
+    @property
+    def closed(self) -> bool:
+        return self._fd is None
+
+    def flush(self) -> int:
+        """Append the rows added since the last flush and sync them; returns how many."""
+        if self._fd is None:
+            raise ValueError(f"{str(self.path)!r}: the CSV log is closed")
+        n = len(self.table.rows)
+        if n > self.written:
+            data = self.table.wide_lines(self.written, n).encode()
+            view = memoryview(data)
+            while view:
+                view = view[os.write(self._fd, view):]
+            self.written = n
+        os.fsync(self._fd)
+        return n
+
+    def close(self) -> None:
+        """Flush and close (again: nothing)."""
+        if self._fd is None:
+            return
+        try:
+            self.flush()
+        finally:
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def read_csv(path) -> dict[str, np.ndarray]:
+    """The columns of a table's wide CSV file, ``{name: (T,) array}``; also while it grows.
+
+    Only complete lines count: a last line without its newline (a run killed
+    inside an append, or a file read while a flush is under way) is left out.
+
+    Raises
+    ------
+    ValueError
+        For a missing file, a file without a header, or a row with the wrong
+        number of values.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ValueError(f"CSV file {str(path)!r}: not found") from None
+    lines = text.split("\n")
+    complete = lines[:-1]  # the piece after the last newline is incomplete (or empty)
+    if not complete:
+        raise ValueError(f"CSV file {str(path)!r}: no header line")
+    head = complete[0].split(",")
+    rows = []
+    for i, line in enumerate(complete[1:], start=2):
+        vals = line.split(",")
+        if len(vals) != len(head):
+            raise ValueError(f"CSV file {str(path)!r}, line {i}: {len(vals)} values, "
+                             f"{len(head)} columns in the header")
+        try:
+            rows.append([float(v) for v in vals])
+        except ValueError:
+            raise ValueError(f"CSV file {str(path)!r}, line {i}: not all numbers") from None
+    data = np.array(rows, dtype=float).reshape(len(rows), len(head))
+    return {name: data[:, j] for j, name in enumerate(head)}

@@ -1,54 +1,416 @@
-"""Checkpoints: the whole state of a run in one file, and resuming from it.
+"""Checkpoints: the whole state of a run in one plain-data file, and resuming from it.
 
 A checkpoint holds everything the next step depends on: the scene, the step
 count, the fluid state with *both* BDF2 histories (``u_n``, ``u_{n-1}``) and
 the particle histories, the DEM state (positions, velocities, BDF2 history,
 contact springs), the mesh with its meshing recipe and the reference
-positions of the particles on it, the history rows, the counters and the
-frames written so far. It is written atomically (temporary file + rename),
-so a run killed while writing leaves the previous checkpoint intact.
-The stepper hands over its state (``checkpoint_state``) and is rebuilt from it
-on resume; it refactorises at each checkpoint too, so a run resumed from a
-checkpoint reproduces the run that wrote it bit for bit (tested).
+positions of the particles on it, the step controller's state, the history
+rows, the counters and the frames written so far. The stepper hands over its
+state (``checkpoint_state``) and is rebuilt from it on resume; it refactorises
+at each checkpoint too, so a run resumed from a checkpoint reproduces the run
+that wrote it bit for bit (tested, also after a SIGKILL at a random moment).
+
+The file, ``checkpoint.npz``, is plain data (:mod:`skfem_granular.io.plain`):
+a zip of ``.npy`` arrays (float64, int64 or bool) and ``header.json`` (format
+name and version, every other value, the type of every object), written
+atomically and synced to the disk. Open it with ``numpy.load(path,
+allow_pickle=False)`` (arrays by field path, e.g. ``"stepper.state.u_n"``)
+or ``unzip -p checkpoint.npz header.json``. Reading it runs no code from the
+file: objects are rebuilt only for an allowlisted set of types
+(:data:`REGISTRY`), through their constructors, so the scene is validated as
+a scene read from TOML is; every array's dtype and shape is checked against
+the header and the field's meaning (the fluid vectors against the mesh, the
+particle arrays against the number of particles), every float must be finite
+except the history's and the error estimate's, and unknown versions, keys,
+fields or arrays are refused, each with one line naming the field.
+
+Versions 1 and 2 were ``checkpoint.pkl`` files; they are refused, never read
+(loading such a file can run arbitrary code): no pickle is used anywhere.
 """
 
 from __future__ import annotations
 
-import pickle
+import dataclasses
+import re
 from pathlib import Path
 
-from ..io import atomic_write
+import numpy as np
+import skfem
 
-FORMAT = "skfem-granular checkpoint 2"
-FILENAME = "checkpoint.pkl"
+import meshing
+
+from ..coupled.state import CoupledState
+from ..dem import ContactLaw, Polygon
+from ..fluid.properties import Fluid
+from ..io import History, plain
+from ..scene import Effects, MeshSpec, ParticleSpec, Scene, TimeSpec
+
+FORMAT = "skfem-granular checkpoint"
+#: The format version written and the only one read (1 and 2, pickle files, are not read).
+VERSION = 3
+FILENAME = "checkpoint.npz"
+#: The pickle checkpoints of earlier versions: refused, never unpickled.
+LEGACY_FILENAME = "checkpoint.pkl"
+
+HEADER_KEYS = {"format", "version", "written_by", "content"}
+CONTENT_KEYS = {"scene", "k", "dem", "stepper", "history", "frames"}
 
 
+def _polygon(d):
+    return Polygon(d["vertices"], name="polygon")
+
+
+def _mesh_fields(m):
+    return {"doflocs": m.doflocs, "t": m.t,
+            "boundaries": None if m.boundaries is None else dict(m.boundaries),
+            "subdomains": None if m.subdomains is None else dict(m.subdomains)}
+
+
+def _index_dict(name, d, n):
+    if d is None:
+        return None
+    if not isinstance(d, dict):
+        raise ValueError(f"{name}: must be a dict of index arrays or None")
+    for k, v in d.items():
+        if not (isinstance(v, np.ndarray) and v.ndim == 1 and v.dtype.kind == "i"):
+            raise ValueError(f"{name}.{k}: must be a 1-D integer array")
+        if v.size and (v.min() < 0 or v.max() >= n):
+            raise ValueError(f"{name}.{k}: indices must be in [0, {n})")
+    return d
+
+
+def _mesh(d):
+    p, t = d["doflocs"], d["t"]
+    if not (isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 2
+            and p.shape[0] == 2 and p.shape[1] >= 3):
+        raise ValueError("doflocs: must be a (2, N) float64 array, N >= 3")
+    if not (isinstance(t, np.ndarray) and t.dtype.kind == "i" and t.ndim == 2
+            and t.shape[0] == 3 and t.shape[1] >= 1):
+        raise ValueError("t: must be a (3, T) integer array, T >= 1")
+    if t.min() < 0 or t.max() >= p.shape[1]:
+        raise ValueError(f"t: vertex indices must be in [0, {p.shape[1]})")
+    mesh = skfem.MeshTri(p, t.astype(np.int32), sort_t=False)
+    b = _index_dict("boundaries", d["boundaries"], mesh.facets.shape[1])
+    s = _index_dict("subdomains", d["subdomains"], t.shape[1])
+    return skfem.MeshTri(p, t.astype(np.int32), _boundaries=b, _subdomains=s, sort_t=False)
+
+
+#: The types a checkpoint may hold besides plain values and arrays. Dataclasses are stored
+#: as their fields, so a field added to one of them (CoupledState, say) is stored and read
+#: back with no change here.
+REGISTRY_DATACLASSES = (CoupledState, meshing.BodyFittedMesh, meshing.Recipe, Scene,
+                        ParticleSpec, MeshSpec, TimeSpec, Effects, Fluid, ContactLaw)
+REGISTRY_CUSTOM = (
+    plain.Custom(Polygon, ("vertices",), lambda p: {"vertices": p.vertices}, _polygon,
+                 name="skfem_granular.dem.Polygon"),
+    plain.Custom(skfem.MeshTri, ("doflocs", "t", "boundaries", "subdomains"), _mesh_fields,
+                 _mesh, name="skfem.MeshTri"),
+)
+REGISTRY = plain.Registry(dataclasses=REGISTRY_DATACLASSES, custom=REGISTRY_CUSTOM)
+
+#: Fields that may hold NaN or inf (besides dataclass fields whose default is NaN):
+#: the history (error estimates of fixed-step runs, fluid energy of dry runs).
+_NONFINITE_FIELDS = re.compile(r"^history\.")
+
+
+def _nonfinite_ok(path: str) -> bool:
+    return bool(_NONFINITE_FIELDS.match(path))
+
+
+# ---------------------------------------------------------------------- history
+def _history_columns(hist: History) -> dict:
+    """The history as arrays: step columns ``(T,)``, particle columns ``(T, K)``."""
+    rows, K = hist.rows, hist.K
+    step = {}
+    for c in hist.STEP_COLUMNS:
+        vals = [r.get(c, np.nan) for r in rows]
+        ints = vals and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+                            for v in vals)
+        step[c] = np.array(vals, dtype=np.int64 if ints else np.float64).reshape(len(rows))
+    part = {c: np.array([r[c] for r in rows], dtype=float).reshape(len(rows), K)
+            for c in hist.PARTICLE_COLUMNS}
+    return {"particles": K, "step": step, "particle": part}
+
+
+def _history_rows(d, where: str, n_particles: int) -> list:
+    def fail(path, problem):
+        raise ValueError(f"{where}: {path}: {problem}")
+
+    if not isinstance(d, dict) or set(d) != {"particles", "step", "particle"}:
+        fail("history", "must hold 'particles', 'step' and 'particle' (and nothing else)")
+    if d["particles"] != n_particles:
+        fail("history.particles", f"= {d['particles']!r}: must be {n_particles} (the scene's "
+                                  "particles)")
+    for name, cols in (("step", History.STEP_COLUMNS), ("particle", History.PARTICLE_COLUMNS)):
+        got = d[name]
+        if not isinstance(got, dict) or set(got) != set(cols):
+            extra = sorted(set(got) - set(cols)) if isinstance(got, dict) else []
+            what = f"unknown column {extra[0]!r}" if extra else "columns missing"
+            fail(f"history.{name}", f"{what} (columns: {', '.join(cols)})")
+    T = None
+    for c in History.STEP_COLUMNS:
+        a = d["step"][c]
+        if not (isinstance(a, np.ndarray) and a.ndim == 1):
+            fail(f"history.step.{c}", "must be a 1-D array")
+        T = a.shape[0] if T is None else T
+        if a.shape != (T,):
+            fail(f"history.step.{c}", f"shape {a.shape}: must be ({T},) like history.step.t")
+    for c in History.PARTICLE_COLUMNS:
+        a = d["particle"][c]
+        if not (isinstance(a, np.ndarray) and a.shape == (T, n_particles)
+                and a.dtype == np.float64):
+            shape = getattr(a, "shape", None)
+            fail(f"history.particle.{c}", f"shape {shape}: must be a ({T}, {n_particles}) "
+                                          "float array")
+    t = d["step"]["t"]
+    if T and not np.all(np.isfinite(t)):
+        fail("history.step.t", "contains NaN or inf (must be finite)")
+    rows = []
+    for i in range(T):
+        row = {}
+        for c in History.STEP_COLUMNS:
+            v = d["step"][c][i]
+            row[c] = int(v) if d["step"][c].dtype == np.int64 else float(v)
+        for c in History.PARTICLE_COLUMNS:
+            row[c] = d["particle"][c][i].copy()
+        rows.append(row)
+    return rows
+
+
+# ---------------------------------------------------------------------- write
 def save(sim, k: int, series) -> Path:
-    """Write ``checkpoint.pkl`` into the simulation's output directory after step ``k``."""
-    data = {
-        "format": FORMAT,
+    """Write ``checkpoint.npz`` into the simulation's output directory after step ``k``.
+
+    The history CSV is the caller's (:class:`~skfem_granular.simulation.Simulation`
+    flushes it at every checkpoint).
+    """
+    content = {
         "scene": sim.scene,
-        "k": k,
+        "k": int(k),
         "dem": sim.dem.save_state(),
         "stepper": sim.stepper.checkpoint_state(),
-        "history": sim.history.rows,
-        "frames": {name: s.frames for name, s in (series or {}).items() if s is not None},
+        "history": _history_columns(sim.history),
+        "frames": {name: [(float(t), str(f)) for t, f in s.frames]
+                   for name, s in (series or {}).items() if s is not None},
     }
-    blob = pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL)
-    path = Path(sim.output_dir) / FILENAME
-    return atomic_write(path, lambda tmp: Path(tmp).write_bytes(blob))
+    from .. import __version__
+
+    node, arrays = plain.encode(content, REGISTRY)
+    header = {"format": FORMAT, "version": VERSION, "written_by": f"skfem-granular {__version__}",
+              "content": node}
+    return plain.write(Path(sim.output_dir) / FILENAME, header, arrays, fsync=True)
 
 
+# ---------------------------------------------------------------------- read
 def load(directory) -> dict:
-    """Read a checkpoint; a clear ValueError for a missing or corrupt file."""
-    path = Path(directory) / FILENAME
+    """Read and validate the checkpoint in ``directory``.
+
+    Returns
+    -------
+    dict
+        ``scene`` (a validated :class:`~skfem_granular.scene.Scene`), ``k`` (steps
+        done), ``dem`` (:meth:`DEMSystem.save_state` dict), ``stepper``
+        (``checkpoint_state()`` dict), ``history`` (the rows), ``frames``
+        (``{series: [(t, file), ...]}``).
+
+    Raises
+    ------
+    ValueError
+        One line naming the file and the field: no checkpoint, a pickle
+        checkpoint of an earlier version, a file of another format or version,
+        unknown or missing keys, fields or arrays, wrong dtypes or shapes,
+        NaN/inf, values a scene would refuse.
+    """
+    d = Path(directory)
+    path = d / FILENAME
     if not path.is_file():
+        if (d / LEGACY_FILENAME).is_file():
+            raise ValueError(f"resume: {str(d / LEGACY_FILENAME)!r}: a pickle file, not loaded "
+                             "(a checkpoint of an earlier version; loading it could run code "
+                             "from the file): run again with this version to get a "
+                             "checkpoint.npz")
         raise ValueError(f"resume: no {FILENAME} in {str(directory)!r} (run with "
                          "output.checkpoint_every > 0 first)")
-    try:
-        data = pickle.loads(path.read_bytes())
-    except Exception as exc:  # any unpickling failure means a corrupt file
-        raise ValueError(f"resume: {str(path)!r} is not a readable checkpoint ({exc!r})") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise ValueError(f"resume: {str(path)!r} is not a {FORMAT!r} file")
+    where = f"checkpoint {str(path)!r}"
+    header, arrays = plain.read(path, where=where)
+    extra = sorted(set(header) - HEADER_KEYS)
+    if extra:
+        raise ValueError(f"{where}: header: unknown key {extra[0]!r}")
+    if header.get("format") != FORMAT:
+        raise ValueError(f"{where}: format = {header.get('format')!r}: not a {FORMAT!r} file")
+    version = header.get("version")
+    if version != VERSION or isinstance(version, bool):
+        raise ValueError(f"{where}: version = {version!r}: this version of skfem-granular "
+                         f"reads checkpoint version {VERSION} only")
+    missing = sorted(HEADER_KEYS - set(header))
+    if missing:
+        raise ValueError(f"{where}: header: missing key {missing[0]!r}")
+    data = plain.decode(header["content"], arrays, REGISTRY, where=where,
+                        nonfinite_ok=_nonfinite_ok)
+    if not isinstance(data, dict):
+        raise ValueError(f"{where}: content: must be a dict")
+    extra, missing = sorted(set(data) - CONTENT_KEYS), sorted(CONTENT_KEYS - set(data))
+    if extra:
+        raise ValueError(f"{where}: {extra[0]}: unknown key (a checkpoint holds "
+                         f"{', '.join(sorted(CONTENT_KEYS))})")
+    if missing:
+        raise ValueError(f"{where}: {missing[0]}: missing")
+    scene = data["scene"]
+    if not isinstance(scene, Scene):
+        raise ValueError(f"{where}: scene: must be a Scene, got {type(scene).__name__}")
+    K = len(scene.particles)
+    data["history"] = _history_rows(data["history"], where, K)
+    _check(data, where, K)
     return data
+
+
+def _fail(where, path, problem):
+    raise ValueError(f"{where}: {path}: {problem}")
+
+
+def _check_array(where, path, a, shape, *, none=False, dtype=np.float64):
+    if a is None and none:
+        return
+    if not isinstance(a, np.ndarray):
+        _fail(where, path, f"must be an array{' or None' if none else ''}, got "
+                           f"{type(a).__name__}")
+    if a.dtype != dtype:
+        _fail(where, path, f"dtype {a.dtype}: must be {np.dtype(dtype)}")
+    if a.shape != tuple(shape):
+        _fail(where, path, f"shape {a.shape}: must be {tuple(shape)}")
+
+
+def _check_count(where, path, v):
+    if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+        _fail(where, path, f"= {v!r}: must be an integer >= 0")
+
+
+def _check_time(where, path, v, *, none=False):
+    if v is None and none:
+        return
+    if isinstance(v, np.ndarray) and v.shape == () and v.dtype == np.float64:
+        v = float(v)  # the DEM's BDF2 history keeps its step as a 0-d array
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
+        _fail(where, path, f"= {v!r}: must be a finite number >= 0")
+
+
+def _check(data, where, K):
+    """Shapes and ranges of the fields this version knows (fields it does not know pass)."""
+    _check_count(where, "k", data["k"])
+    if data["k"] != len(data["history"]):
+        _fail(where, "k", f"= {data['k']}: must equal the number of history rows "
+                          f"({len(data['history'])})")
+    dem = data["dem"]
+    if not isinstance(dem, dict):
+        _fail(where, "dem", "must be a dict")
+    for name, shape in (("q", (3, K)), ("v", (3, K)), ("external_force", (2, K)),
+                        ("external_torque", (K,))):
+        if name in dem:
+            _check_array(where, f"dem.{name}", dem[name], shape)
+    if "t" in dem:
+        _check_time(where, "dem.t", dem["t"])
+    if "steps" in dem:
+        _check_count(where, "dem.steps", dem["steps"])
+    if "contact_keys" in dem and "contact_ft" in dem:
+        keys = dem["contact_keys"]
+        _check_array(where, "dem.contact_keys", keys, getattr(keys, "shape", ()),
+                     dtype=np.int64)
+        _check_array(where, "dem.contact_ft", dem["contact_ft"], keys.shape)
+    bdf2 = dem.get("bdf2")
+    if isinstance(bdf2, dict):
+        for name in ("q_prev", "v_prev", "a", "a_prev"):
+            if name in bdf2:
+                _check_array(where, f"dem.bdf2.{name}", bdf2[name], (3, K), none=True)
+        if "dt_prev" in bdf2:
+            _check_time(where, "dem.bdf2.dt_prev", bdf2["dt_prev"], none=True)
+    st = data["stepper"]
+    if not isinstance(st, dict):
+        _fail(where, "stepper", "must be a dict")
+    if "steps_taken" in st:
+        _check_count(where, "stepper.steps_taken", st["steps_taken"])
+    for name, v in (st.get("counters") or {}).items():
+        _check_count(where, f"stepper.counters.{name}", v)
+    for name, shape in (("mesh_centers", (2, K)), ("mesh_angles", (K,)),
+                        ("coupling_centers", (2, K))):
+        if name in st:
+            _check_array(where, f"stepper.{name}", st[name], shape)
+    mesh = st.get("mesh")
+    fitted = mesh if isinstance(mesh, meshing.BodyFittedMesh) else None
+    m = fitted.mesh if fitted is not None else mesh
+    if "mesh" in st and not isinstance(m, skfem.MeshTri):
+        _fail(where, "stepper.mesh", f"must be a mesh, got {type(mesh).__name__}")
+    if fitted is not None:
+        nodes = fitted.particle_nodes
+        if len(nodes) != K:
+            _fail(where, "stepper.mesh.particle_nodes", f"{len(nodes)} outlines: must be {K}")
+        for i, idx in enumerate(nodes):
+            if idx.ndim != 1 or idx.dtype.kind != "i" or (
+                    idx.size and (idx.min() < 0 or idx.max() >= m.p.shape[1])):
+                _fail(where, f"stepper.mesh.particle_nodes[{i}]",
+                      f"must be vertex indices in [0, {m.p.shape[1]})")
+        if fitted.recipe is not None and len(fitted.recipe.particles) != K:
+            _fail(where, "stepper.mesh.recipe.particles",
+                  f"{len(fitted.recipe.particles)} outlines: must be {K}")
+    state = st.get("state")
+    if "state" in st and not isinstance(state, CoupledState):
+        _fail(where, "stepper.state", f"must be a CoupledState, got {type(state).__name__}")
+    if state is not None and m is not None:
+        nv, ne = m.p.shape[1], m.facets.shape[1]
+        nu = 2 * (nv + ne)
+        fluid = {"u_n": (nu,), "p_n": (nv,), "x": (nu + nv,), "u_prev": (nu,), "du_n": (nu,),
+                 "du_prev": (nu,)}
+        rigid = {"xi_prev": (3, K), "q_prev": (3, K), "dxi_n": (3, K), "dxi_prev": (3, K),
+                 "F_held": (2, K), "T_held": (K,)}
+        moving = {"nodes_n": (2, nv), "nodes_prev": (2, nv)}  # ALE: the vertices at t, t_{n-1}
+        for name, shape in {**fluid, **rigid, **moving}.items():
+            if hasattr(state, name):
+                none = name not in ("u_n", "x")
+                _check_array(where, f"stepper.state.{name}", getattr(state, name), shape,
+                             none=none)
+        for name in ("t",):
+            _check_time(where, f"stepper.state.{name}", getattr(state, name, 0.0))
+        for name in ("dt_prev", "dt_next"):
+            if hasattr(state, name):
+                _check_time(where, f"stepper.state.{name}", getattr(state, name), none=True)
+        for name in ("since_remesh", "contact_age"):
+            if hasattr(state, name):
+                _check_count(where, f"stepper.state.{name}", getattr(state, name))
+    frames = data["frames"]
+    if not isinstance(frames, dict):
+        _fail(where, "frames", "must be a dict")
+    for name, lst in frames.items():
+        if name not in ("flow", "particles"):
+            _fail(where, f"frames.{name}", "unknown series (flow, particles)")
+        pattern = re.compile(rf"^{name}_\d{{5}}\.vtu$")
+        if not isinstance(lst, list):
+            _fail(where, f"frames.{name}", "must be a list of (t, file)")
+        for i, fr in enumerate(lst):
+            ok = (isinstance(fr, tuple) and len(fr) == 2 and isinstance(fr[1], str)
+                  and pattern.match(fr[1]) and not isinstance(fr[0], bool)
+                  and isinstance(fr[0], (int, float)))
+            if not ok:
+                _fail(where, f"frames.{name}[{i}]", f"= {fr!r}: must be (t, '{name}_NNNNN.vtu')")
+
+
+def check_entries(saved, template, path: str, where: str = "checkpoint") -> None:
+    """Refuse dict keys in ``saved`` that ``template`` (a fresh object's state) lacks, and back.
+
+    ``template`` is what this version's stepper or DEM hands over
+    (``checkpoint_state()``, ``save_state()``), so an entry added to them later is
+    expected with no change here.
+    """
+    if isinstance(template, dict):
+        if not isinstance(saved, dict):
+            _fail(where, path, f"must be a dict, got {type(saved).__name__}")
+        extra = sorted(set(saved) - set(template))
+        if extra:
+            _fail(where, f"{path}.{extra[0]}", "unknown key (this version does not have it)")
+        missing = sorted(set(template) - set(saved))
+        if missing:
+            _fail(where, f"{path}.{missing[0]}", "missing")
+        for k in template:
+            check_entries(saved[k], template[k], f"{path}.{k}", where)
+    elif dataclasses.is_dataclass(template) and not isinstance(template, type):
+        if type(saved) is not type(template):
+            _fail(where, path, f"must be a {type(template).__name__}, got "
+                               f"{type(saved).__name__}")

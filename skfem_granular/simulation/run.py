@@ -152,7 +152,14 @@ class Simulation:
         -------
         Simulation
             Ready to :meth:`run` from the checkpointed step; output continues
-            in ``directory``.
+            in ``directory`` (``history.csv`` rewritten to the checkpoint's rows
+            when the run starts, ``.partial-*`` left-overs of a killed run removed).
+
+        Raises
+        ------
+        ValueError
+            One line naming the field, for a missing, foreign, older (pickle: not read) or
+            inconsistent checkpoint (:func:`~skfem_granular.simulation.checkpoint.load`).
         """
         from . import checkpoint
 
