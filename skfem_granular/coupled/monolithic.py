@@ -83,6 +83,7 @@ class MonolithicCoupling(RigidParticles):
         self.solver = make_solver(solver, self.nz)
         self.factors = FactorCache(self.solver, self._coupled_system, self.timings)
         self.reference_op = self.op  # the operator on the mesh as built (moved ones derive)
+        self.factorized_on = None  # (vertex positions, centres) of the last factorisation
         self.w_mesh = None  # mesh velocity of a moving mesh (None: fixed mesh)
 
     # ------------------------------------------------------------------ structure
@@ -206,6 +207,8 @@ class MonolithicCoupling(RigidParticles):
 
     def _coupled_system(self, a0: float):
         """``E^T J E + a0 diag(m, m, I)`` for the factorisation cache."""
+        # where the mesh was when factorised (a moved mesh's checkpoint rebuilds it there)
+        self.factorized_on = (self.space.mesh.p, self.centers.copy())
         A_uu = self.op.velocity_block(a0)
         J = self.op.matrix(A_uu)
         Jz = (self.ET @ J @ self.E).tocsr()

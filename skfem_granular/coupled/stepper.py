@@ -511,7 +511,16 @@ class CoupledStepper:
                 "counters": {"remeshes": self.remeshes, "retries": self.retries,
                              "rejections": self.rejections, "euler_steps": self.euler_steps}}
         self.dem.neighbours.invalidate()
-        self.coupling.forget_factorization()
+        if self.ale:
+            # a moved mesh's factorisation depends on where the mesh was when it was made:
+            # keep it, and let a resumed stepper make the same one there
+            on = getattr(self.coupling, "factorized_on", None)
+            a0 = self.coupling.factors.a0
+            data.update(factor_a0=a0, factor_nodes=None if a0 is None else on[0],
+                        factor_centers=None if a0 is None else on[1])
+        else:
+            data.update(factor_a0=None, factor_nodes=None, factor_centers=None)
+            self.coupling.forget_factorization()
         return data
 
     @classmethod
@@ -521,6 +530,10 @@ class CoupledStepper:
         st = cls(scene, dem, data["mesh"], contacts_active=contacts_active, timings=timings,
                  centers=data["mesh_centers"], angles=data["mesh_angles"])
         st.state = data["state"]
+        if st.ale and data.get("factor_a0") is not None:  # the writer's factorisation
+            st.coupling.move(st.reference_space.moved(data["factor_nodes"]),
+                             data["factor_centers"], None)
+            st.coupling.factors.operator(data["factor_a0"])
         if st.ale and st.state.nodes_n is not None:  # the mesh where the last step left it
             st.coupling.move(st.reference_space.moved(st.state.nodes_n),
                              data["coupling_centers"], None)
