@@ -16,6 +16,7 @@ angle, smallest signed-area ratio to the built mesh), for the remeshing rule of
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -97,12 +98,23 @@ def _signed_areas(p: np.ndarray, t: np.ndarray) -> np.ndarray:
 def mesh_quality(p: np.ndarray, t: np.ndarray, area_ref: np.ndarray) -> tuple[float, float]:
     """Smallest angle (degrees) of the triangles at ``p``, and the smallest ratio of a
     triangle's signed area to its area in the built mesh (<= 0: inverted)."""
-    ratio = float(np.min(_signed_areas(p, t) / area_ref))
-    e = [p[:, t[(i + 2) % 3]] - p[:, t[(i + 1) % 3]] for i in range(3)]
-    L = [np.linalg.norm(x, axis=0) for x in e]
-    angles = []
-    for i in range(3):  # the angle at vertex i, between the edges that meet there
-        u, v = -e[(i + 1) % 3], e[(i + 2) % 3]
-        cos = (u * v).sum(axis=0) / (L[(i + 1) % 3] * L[(i + 2) % 3])
-        angles.append(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
-    return float(np.min(angles)), ratio
+    angle, ratio = _quality(np.ascontiguousarray(p, dtype=float), t, area_ref)
+    return float(np.degrees(angle)), float(ratio)
+
+
+@numba.njit(cache=True)
+def _quality(p, t, area_ref):  # pragma: no cover (compiled)
+    """Smallest angle (radians) and smallest signed-area ratio, in one pass."""
+    smallest, ratio = np.pi, np.inf
+    for e in range(t.shape[1]):
+        a, b, c = t[0, e], t[1, e], t[2, e]
+        ex = (p[0, c] - p[0, b], p[0, a] - p[0, c], p[0, b] - p[0, a])  # edge i opposite i
+        ey = (p[1, c] - p[1, b], p[1, a] - p[1, c], p[1, b] - p[1, a])
+        area = 0.5 * ((p[0, b] - p[0, a]) * (p[1, c] - p[1, a])
+                      - (p[1, b] - p[1, a]) * (p[0, c] - p[0, a]))
+        ratio = min(ratio, area / area_ref[e])
+        for i in range(3):  # the angle at vertex i, between the edges that meet there
+            j, k = (i + 1) % 3, (i + 2) % 3
+            ux, uy, vx, vy = -ex[j], -ey[j], ex[k], ey[k]
+            smallest = min(smallest, np.arctan2(abs(ux * vy - uy * vx), ux * vx + uy * vy))
+    return smallest, ratio

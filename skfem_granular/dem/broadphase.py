@@ -7,7 +7,6 @@ have ``i < j < N``, particle-wall pairs have ``j = N + w`` for wall ``w``.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 __all__ = ["NeighbourList", "circle_pairs", "wall_pairs"]
 
@@ -33,6 +32,8 @@ def circle_pairs(X: np.ndarray, radius: np.ndarray, margin: float = 0.0):
     if N < 2:
         e = np.zeros(0, dtype=np.int64)
         return e, e
+    from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
+
     tree = cKDTree(X.T)
     P = tree.query_pairs(r=2.0 * float(radius.max()) + margin, output_type="ndarray")
     if P.size == 0:

@@ -59,20 +59,16 @@ class ConvectionKernel:
         self._scatter_idx = (2 * self.edofs.T[:, :, None] + np.arange(2)).ravel()  # (nel, 6, 2)
         self._jac_tables = None  # built on the first jacobian() call
 
-    def with_geometry(self, dphi: np.ndarray, dx: np.ndarray) -> ConvectionKernel:
-        """The same kernel on a moved mesh: basis gradients ``dphi`` ``(6, 2, nel, nq)`` and
-        quadrature weights ``dx`` ``(nel, nq)`` of the moved triangles (values, DOFs and the
-        sparsity pattern are those of this kernel)."""
+    def with_tables(self, tab: np.ndarray, wphi: np.ndarray) -> ConvectionKernel:
+        """The same kernel on a moved mesh, from its element tables: ``tab``
+        ``(nel, 3 nq, 6)`` (basis values, x- and y-derivatives at the quadrature points)
+        and ``wphi`` ``(nel, 6, nq)`` (``phi_i dx``) of the moved triangles; values, DOFs
+        and the sparsity pattern are those of this kernel
+        (:meth:`~skfem_granular.fluid.geometry.ReferenceBlocks.moved` builds the tables)."""
         new = copy.copy(self)
-        new.dphi, new.dx = dphi, dx
-        nq = self._nq
-        tab = np.empty_like(self._tab)
-        tab[:, :nq] = self._tab[:, :nq]
-        tab[:, nq:2 * nq] = dphi[:, 0].transpose(1, 2, 0)
-        tab[:, 2 * nq:] = dphi[:, 1].transpose(1, 2, 0)
-        new._tab = tab
-        new._wphi = np.ascontiguousarray((self.phi * dx).transpose(1, 0, 2))
-        new._jac_tables = None
+        new._tab, new._wphi = tab, wphi
+        new.dphi = new.dx = None  # the reference mesh's: not those of the moved one
+        new._jac_tables = new._mesh_wind = None
         return new
 
     def _jacobian_tables(self):
@@ -126,6 +122,23 @@ class ConvectionKernel:
         Fa = self._element_fields(a)
         Fb = Fa if b is a else self._element_fields(b)
         return self._test(self._advect(Fa, Fb))
+
+    def apply_relative(self, u: np.ndarray, w: np.ndarray, convection: bool = True
+                       ) -> np.ndarray:
+        """``(((u - w) . grad) u, v_i)`` (``convection``) or ``((-w . grad) u, v_i)``: the ALE
+        convection of ``u`` on a mesh moving with velocity ``w``.
+
+        The element fields of ``w`` are kept between calls with the same array ``w`` (one
+        mesh velocity per step, many iterates ``u``); the wind's fields are those of ``u``
+        minus those of ``w`` (linear in the DOFs).
+        """
+        cached = getattr(self, "_mesh_wind", None)
+        if cached is None or cached[0] is not w:
+            cached = (w, self._element_fields(w))
+            self._mesh_wind = cached
+        Fu = self._element_fields(u)
+        wind = Fu - cached[1] if convection else -cached[1]
+        return self._test(self._advect(wind, Fu))
 
     def residual(self, u: np.ndarray) -> np.ndarray:
         """``N(u) u``."""

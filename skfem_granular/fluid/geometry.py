@@ -50,8 +50,8 @@ class _Pattern:
         self.indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
         self.shape = shape
 
-    def matrix(self, local: np.ndarray) -> sp.csr_matrix:
-        data = np.bincount(self.slot, weights=local.ravel(), minlength=self.indices.size)
+    def csr(self, data: np.ndarray) -> sp.csr_matrix:
+        """The matrix with values ``data`` on this pattern (index arrays shared)."""
         return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
 
     def transpose_map(self):
@@ -78,7 +78,7 @@ class ReferenceBlocks:
 
     def __init__(self, space):
         mesh = space.mesh
-        self.t = mesh.t
+        self.t = np.ascontiguousarray(mesh.t)
         # scikit-fem does not orient triangles: a moved triangle is inverted when its
         # orientation differs from the reference one
         self.orientation = np.sign(affine_maps(mesh.p, mesh.t)[2])
@@ -104,7 +104,8 @@ class ReferenceBlocks:
     def blocks(self, p: np.ndarray, names=("M", "K_symmetric", "K_laplace", "B"),
                maps=None) -> dict:
         """The blocks ``names`` (of ``M``, ``K_symmetric``, ``K_laplace``, ``B``) for vertex
-        positions ``p`` ``(2, nv)``; ``maps``: ``(Ainv, |det A|)`` if already known.
+        positions ``p`` ``(2, nv)``; ``maps``: ``(Ainv, |det A|)`` if already known (the
+        inversion check is then the caller's).
 
         Raises
         ------
@@ -112,30 +113,60 @@ class ReferenceBlocks:
             When a triangle is inverted or degenerate at ``p`` (never assemble on a
             negative Jacobian).
         """
-        Ainv, det = self.maps(p) if maps is None else maps
-        nel = det.size
-        out = {}
-        if "M" in names:
-            Ml = np.zeros((nel, 6, 2, 6, 2))
-            Ml[:, :, 0, :, 0] = Ml[:, :, 1, :, 1] = det[:, None, None] * self.Mhat
-            out["M"] = self.uu.matrix(Ml)
-        if "K_symmetric" in names or "K_laplace" in names:
-            # G[e, c, d, i, j] = int d_c phi_i d_d phi_j over element e, as one matrix product:
-            # coefficients det Ainv[k, c] Ainv[l, d] (nel, (c, d, k, l)) times S ((k, l), (i, j))
-            At = Ainv.transpose(0, 2, 1)
-            C = (det[:, None, None, None, None] * At[:, :, None, :, None]
-                 * At[:, None, :, None, :]).reshape(nel * 4, 4)
-            G = (C @ self.S.reshape(4, 36)).reshape(nel, 2, 2, 6, 6)
-            Kl = np.zeros((nel, 6, 2, 6, 2))  # vector blocks ordered (e, i, c, j, d)
-            Kl[:, :, 0, :, 0] = Kl[:, :, 1, :, 1] = G[:, 0, 0] + G[:, 1, 1]
-            if "K_laplace" in names:
-                out["K_laplace"] = self.uu.matrix(Kl)
-            if "K_symmetric" in names:  # + int d_d phi_i d_c phi_j at (e, i, c, j, d)
-                out["K_symmetric"] = self.uu.matrix(Kl + G.transpose(0, 3, 2, 4, 1))
-        if "B" in names:
-            D = Ainv.transpose(0, 2, 1).reshape(nel * 2, 2) @ self.E.reshape(2, 18)  # (e d, m j)
-            Bl = -(det[:, None, None, None] * D.reshape(nel, 2, 3, 6).transpose(0, 2, 3, 1))
-            out["B"] = self.pu.matrix(Bl)
+        data = self.moved(p, check=maps is None, parts=names)
+        return {name: data[name] for name in names}
+
+    def moved(self, p: np.ndarray, check: bool = True,
+              parts=("M", "K_symmetric", "K_laplace", "B", "convection")) -> dict:
+        """The geometric data ``parts`` of the mesh at ``p``, in one compiled pass over the
+        triangles.
+
+        Parameters
+        ----------
+        p : (2, nv) ndarray
+            Vertex positions.
+        check : bool
+            Check first that no triangle is inverted (skip when already checked).
+        parts : sequence of str
+            Of ``M``, ``K_symmetric``, ``K_laplace``, ``B`` (CSR on the reference
+            patterns; the velocity blocks share one pattern) and ``convection``: the
+            convection kernel's tables ``tab`` ``(nel, 3 nq, 6)`` (basis values, x- and
+            y-derivatives at the quadrature points) and ``wphi`` ``(nel, 6, nq)``
+            (``phi_i dx``).
+
+        Returns
+        -------
+        dict
+            The blocks by name, and ``tab``, ``wphi`` for ``convection``.
+
+        Raises
+        ------
+        ValueError
+            When ``check`` and a triangle is inverted or degenerate at ``p``.
+        """
+        from .geometry_numba import moved_element_data
+
+        if check:
+            self.maps(p)
+        p = np.ascontiguousarray(p, dtype=float)
+        uu, pu = self.uu, self.pu
+        n = uu.indices.size
+        M, Ks, Kl = (np.zeros(n if name in parts else 0)
+                     for name in ("M", "K_symmetric", "K_laplace"))
+        B = np.zeros(pu.indices.size if "B" in parts else 0)
+        nel = self.t.shape[1] if "convection" in parts else 0
+        nq = self.weights.size
+        tab = np.empty((nel, 3 * nq, 6))
+        wphi = np.empty((nel, 6, nq))
+        moved_element_data(p, self.t, self.orientation, self.Mhat, self.S, self.E,
+                           self.dphi, self.phi, self.weights, uu.slot, pu.slot,
+                           M, Ks, Kl, B, tab, wphi)
+        out = {"tab": tab, "wphi": wphi} if nel else {}
+        for name, data in (("M", M), ("K_symmetric", Ks), ("K_laplace", Kl)):
+            if name in parts:
+                out[name] = uu.csr(data)
+        if "B" in parts:
+            out["B"] = pu.csr(B)
         return out
 
     def maps(self, p: np.ndarray):
@@ -153,7 +184,3 @@ class ReferenceBlocks:
             raise ValueError(f"mesh motion: triangle {k} is inverted or degenerate "
                              f"(signed area {signed[k] / 2:.3g}); remesh before moving this far")
         return Ainv, signed
-
-    def gradients(self, Ainv: np.ndarray) -> np.ndarray:
-        """Physical gradients ``(6, 2, nel, nq)`` of the P2 basis for inverse maps ``Ainv``."""
-        return np.einsum("ekc,ikq->iceq", Ainv, self.dphi)

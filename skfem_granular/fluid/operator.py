@@ -287,8 +287,8 @@ class NavierStokesOperator:
         if rhs_u is not None:
             ru = ru - rhs_u
         if w_mesh is not None:  # ALE: relative to the moving mesh, also for Stokes
-            wind = u - w_mesh if self.convection else -w_mesh
-            ru = ru + self.fluid.density * sp_.convection.apply(wind, u)
+            ru = ru + self.fluid.density * sp_.convection.apply_relative(u, w_mesh,
+                                                                        self.convection)
         elif self.convection:
             ru = ru + self.fluid.density * sp_.convection.residual(u)
         return np.concatenate([ru, sp_.B @ u])

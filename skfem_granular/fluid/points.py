@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
 from .._validate import points_array, positive
 
@@ -43,6 +42,8 @@ class PointLocator:
         # inverse of [e1 e2] per element
         self._inv = np.array([[e2[1], -e2[0]], [-e1[1], e1[0]]]) / det
         self._e = np.stack([e1, e2])  # (2 edges, 2 coordinates, nel)
+        from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
+
         self._tree = cKDTree(P.mean(axis=1).T)
         #: Points closer than this to the mesh are always snapped (round-off
         #: level for coordinates of the mesh's size, however fine the elements).

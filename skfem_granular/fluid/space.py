@@ -93,19 +93,28 @@ class TaylorHood:
         if p.shape != ref.mesh.p.shape or not np.all(np.isfinite(p)):
             raise ValueError(f"p: must be finite vertex positions of shape {ref.mesh.p.shape}")
         rb = ref.reference_blocks
-        maps = rb.maps(p)  # raises on an inverted triangle
+        rb.maps(p)  # raises on an inverted triangle
         new = object.__new__(TaylorHood)
         d = new.__dict__
         d.update(mesh=dataclasses.replace(ref.mesh, doflocs=p), intorder=ref.intorder,
                  nu=ref.nu, np_=ref.np_, N=ref.N, reference=ref, reference_blocks=rb,
-                 _maps=maps)
+                 )
         for topo in ("component", "all_boundary_dofs", "incidence", "p1_to_p2"):
             d[topo] = getattr(ref, topo)
         return new
 
+    @cached_property
+    def _moved_geometry(self) -> dict:
+        """A moved space's ``M``, ``B`` and convection tables, built together on first use
+        (every step on a moving mesh needs them; ``K`` in the form asked for)."""
+        return self.reference_blocks.moved(self.mesh.p, check=False,
+                                           parts=("M", "B", "convection"))
+
     def _moved_block(self, name: str):
         """A geometric block of a moved space, from reference-element data."""
-        return self.reference_blocks.blocks(self.mesh.p, (name,), self._maps)[name]
+        if name.startswith("K_"):
+            return self.reference_blocks.moved(self.mesh.p, check=False, parts=(name,))[name]
+        return self._moved_geometry[name]
 
     # unknowns per element, for fill-reducing orderings -------------------
     @cached_property
@@ -181,9 +190,8 @@ class TaylorHood:
     def convection(self) -> ConvectionKernel:
         """Fast convection evaluation on this mesh."""
         if self.reference is not self:
-            rb, (Ainv, det) = self.reference_blocks, self._maps
-            return self.reference.convection.with_geometry(
-                rb.gradients(Ainv), det[:, None] * rb.weights[None, :])
+            g = self._moved_geometry
+            return self.reference.convection.with_tables(g["tab"], g["wphi"])
         return ConvectionKernel(self.sb)
 
     def K(self, viscous: str) -> sp.csr_matrix:

@@ -1,0 +1,126 @@
+"""Compiled assembly of the geometric blocks of a moved mesh (one pass over the triangles).
+
+:func:`moved_element_data` is the kernel behind
+:meth:`~skfem_granular.fluid.geometry.ReferenceBlocks.moved`: for every triangle it
+forms the affine map from the vertex positions and adds the element matrices of
+``M``, both viscous forms and ``B`` into the values of their fixed CSR patterns, and
+writes the convection kernel's per-element tables (basis gradients at the
+quadrature points, weighted basis values). The formulas are those of
+:mod:`~skfem_granular.fluid.geometry`; contributions are added in the element
+order of the scatter maps, as ``numpy.bincount`` would.
+
+Compiled with numba (``cache=True``: compiled once per installation and reused by
+later processes).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def moved_element_data(p, t, orientation, Mhat, S, E, dref, phi, weights, uu_slot, pu_slot,
+                       M, Ks, Kl, B, tab, wphi):  # pragma: no cover (compiled)
+    """Accumulate the blocks of the triangles ``t`` at vertex positions ``p``.
+
+    Parameters
+    ----------
+    p : (2, nv) ndarray
+        Vertex positions.
+    t : (3, nel) ndarray
+        Triangles.
+    orientation : (nel,) ndarray
+        Sign of each triangle's determinant in the reference mesh.
+    Mhat, S, E : ndarray
+        Reference integrals ``(6, 6)``, ``(2, 2, 6, 6)``, ``(2, 3, 6)``
+        (:class:`~skfem_granular.fluid.geometry.ReferenceBlocks`).
+    dref : (6, 2, nq) ndarray
+        Reference gradients of the P2 basis at the quadrature points.
+    phi : (6, nq) ndarray
+        P2 basis values at the quadrature points.
+    weights : (nq,) ndarray
+        Reference quadrature weights.
+    uu_slot : (nel * 144,) ndarray
+        Value slot of local velocity entry ``(e, i, c, j, d)``.
+    pu_slot : (nel * 36,) ndarray
+        Value slot of local divergence entry ``(e, m, j, d)``.
+    M, Ks, Kl, B : ndarray
+        Zeroed value arrays of the blocks (output): ``M``, the symmetric-gradient and
+        the Laplace forms of ``K``, ``B``; one of size 0 is skipped.
+    tab : (nel, 3 nq, 6) ndarray
+        Convection table: values, x- and y-derivatives of the basis (output; skipped,
+        with ``wphi``, when of length 0).
+    wphi : (nel, 6, nq) ndarray
+        ``phi_i(q) dx(q)`` (output).
+    """
+    nel = t.shape[1]
+    nq = weights.shape[0]
+    mass, symmetric, laplace = M.size > 0, Ks.size > 0, Kl.size > 0
+    divergence, tables = B.size > 0, tab.shape[0] > 0
+    At = np.empty((2, 2))
+    G = np.empty((2, 2, 6, 6))
+    C = np.empty((2, 2, 4))
+    for e in range(nel):
+        a, b, c_ = t[0, e], t[1, e], t[2, e]
+        a00 = p[0, b] - p[0, a]
+        a10 = p[1, b] - p[1, a]
+        a01 = p[0, c_] - p[0, a]
+        a11 = p[1, c_] - p[1, a]
+        det = a00 * a11 - a01 * a10
+        # Ainv = [[a11, -a01], [-a10, a00]] / det; At[c, k] = Ainv[k, c]
+        At[0, 0] = a11 / det
+        At[1, 1] = a00 / det
+        At[1, 0] = -a01 / det
+        At[0, 1] = -a10 / det
+        det = det * orientation[e]  # |det A| of a valid triangle
+        base = 144 * e
+        if mass:
+            for i in range(6):
+                for c in range(2):
+                    for j in range(6):
+                        M[uu_slot[base + ((2 * i + c) * 6 + j) * 2 + c]] += det * Mhat[i, j]
+        if symmetric or laplace:
+            for c in range(2):
+                for d in range(2):
+                    for k in range(2):
+                        for l in range(2):
+                            C[c, d, 2 * k + l] = det * At[c, k] * At[d, l]
+            for c in range(2):
+                for d in range(2):
+                    for i in range(6):
+                        for j in range(6):
+                            s = 0.0
+                            for k in range(2):
+                                for l in range(2):
+                                    s += C[c, d, 2 * k + l] * S[k, l, i, j]
+                            G[c, d, i, j] = s
+            for i in range(6):
+                for c in range(2):
+                    for j in range(6):
+                        lap = G[0, 0, i, j] + G[1, 1, i, j]
+                        for d in range(2):
+                            slot = uu_slot[base + ((2 * i + c) * 6 + j) * 2 + d]
+                            if c == d:
+                                if laplace:
+                                    Kl[slot] += lap
+                                if symmetric:
+                                    Ks[slot] += lap + G[d, c, i, j]
+                            elif symmetric:
+                                Ks[slot] += G[d, c, i, j]
+        if divergence:
+            base = 36 * e
+            for m in range(3):
+                for j in range(6):
+                    for d in range(2):
+                        s = At[d, 0] * E[0, m, j] + At[d, 1] * E[1, m, j]
+                        B[pu_slot[base + (6 * m + j) * 2 + d]] += -(det * s)
+        if not tables:
+            continue
+        for q in range(nq):
+            dxq = det * weights[q]
+            for i in range(6):
+                tab[e, q, i] = phi[i, q]
+                tab[e, nq + q, i] = At[0, 0] * dref[i, 0, q] + At[0, 1] * dref[i, 1, q]
+                tab[e, 2 * nq + q, i] = At[1, 0] * dref[i, 0, q] + At[1, 1] * dref[i, 1, q]
+                wphi[e, i, q] = phi[i, q] * dxq
