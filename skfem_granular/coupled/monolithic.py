@@ -44,6 +44,10 @@ from .rigid import RigidParticles
 #: factorisation as preconditioner.
 KRYLOV_RATE = 0.3
 
+#: Moving mesh: relative residual reduction asked of each GMRES correction (an inexact
+#: Newton step: the outer iteration checks the update against ``newton_tol``).
+KRYLOV_RTOL = 1e-4
+
 
 class MonolithicCoupling(RigidParticles):
     """Fluid + rigid particles in one BDF2/Newton system on a fixed mesh.
@@ -250,7 +254,7 @@ class MonolithicCoupling(RigidParticles):
         n = self.nz
         J = spla.LinearOperator((n, n), matvec=matvec, dtype=float)
         P = spla.LinearOperator((n, n), matvec=solve, dtype=float)
-        dz, _ = spla.gmres(J, -G, M=P, rtol=1e-10, atol=0.0, restart=30, maxiter=10)
+        dz, _ = spla.gmres(J, -G, M=P, rtol=KRYLOV_RTOL, atol=0.0, restart=30, maxiter=10)
         return dz
 
     def residual(self, z, x_D, rhs_u, rigid_rhs, A_uu=None):

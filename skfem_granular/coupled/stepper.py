@@ -212,6 +212,10 @@ class CoupledStepper:
                 "(pass a meshing.BodyFittedMesh from meshing.build)")
         t0 = time.perf_counter()
         old = self.space
+        # moving mesh: the t_{n-1} fields sit at the nodes' t_{n-1} positions
+        old_prev = (self.reference_space.moved(s.nodes_prev)
+                    if self.ale and s.nodes_prev is not None and s.q_prev is not None
+                    else None)
         new_mesh = meshing.remesh(self.meshed, dem.core_outlines())
         self.timings["meshing"] += time.perf_counter() - t0
         self._set_mesh(new_mesh)
@@ -219,14 +223,21 @@ class CoupledStepper:
         tr = FieldTransfer(old, self.space)
         e_old = 0.5 * sc.fluid.density * float(s.u_n @ (old.M @ s.u_n))
         s.u_n = tr.velocity(s.u_n)
-        s.u_prev = None if s.u_prev is None else tr.velocity(s.u_prev)
         s.du_n = None if s.du_n is None else tr.velocity(s.du_n)
-        s.du_prev = None if s.du_prev is None else tr.velocity(s.du_prev)
         s.p_n = tr.pressure(s.p_n)
+        tr_prev = tr
+        if self.ale:
+            s.nodes_n, s.nodes_prev = self.mesh.p, None  # built where the particles are
+            if old_prev is not None:
+                # the new mesh's own t_{n-1} configuration: its outlines where the particles
+                # were then, so the mesh velocity stays the particles' velocity at the
+                # outlines and the t_{n-1} history is the field at those points then
+                s.nodes_prev = self.motion.positions(s.q_prev)
+                tr_prev = FieldTransfer(old_prev, self.reference_space.moved(s.nodes_prev))
+        s.u_prev = None if s.u_prev is None else tr_prev.velocity(s.u_prev)
+        s.du_prev = None if s.du_prev is None else tr_prev.velocity(s.du_prev)
         s.x = np.concatenate([s.u_n, s.p_n])
         s.since_remesh = 0
-        if self.ale:  # the new mesh is built where the particles are: at rest until now
-            s.nodes_n, s.nodes_prev = self.mesh.p, None
         # interpolation must not create kinetic energy out of nothing: record the ratio
         if e_old > 0:
             self.remesh_energy_ratios.append(self.fluid_energy() / e_old)
