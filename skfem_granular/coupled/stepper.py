@@ -147,6 +147,8 @@ class CoupledStepper:
             [np.linalg.norm(c - c.mean(axis=1, keepdims=True), axis=0).max() for c in cores])
         self.remeshes = self.retries = self.rejections = self.euler_steps = 0
         self.remesh_energy_ratios = []
+        #: moving mesh: why it was remeshed, ``{reason: count}`` (:meth:`_ale_remesh_reason`)
+        self.remesh_reasons = {}
         self._set_mesh(mesh, centers, angles)
         self.state = CoupledState(u_n=np.zeros(self.space.nu), p_n=None,
                                   x=np.zeros(self.space.N), F_held=np.zeros((2, dem.n)),
@@ -197,8 +199,10 @@ class CoupledStepper:
         dem, sc, s = self.dem, self.scene, self.state
         moved = lag(self.mesh_centers, self.mesh_angles, dem.positions, dem.angles, self.radius)
         if self.ale:
-            if not self._ale_remesh_needed(moved):
+            reason = self._ale_remesh_reason(moved)
+            if reason is None:
                 return
+            self.remesh_reasons[reason] = self.remesh_reasons.get(reason, 0) + 1
         elif not np.any(moved > sc.remesh_fraction * self.edge):
             return
         if not sc.effects.remeshing:
@@ -370,20 +374,23 @@ class CoupledStepper:
 
         return geometry
 
-    def _ale_remesh_needed(self, moved) -> bool:
-        """Moving mesh: remesh when the moved mesh's quality is low, or would be after the
-        next step, or a particle has travelled ``remesh_travel`` radii from where its mesh
-        was built."""
+    def _ale_remesh_reason(self, moved) -> str | None:
+        """Moving mesh: why to remesh now, or None. ``"travel"``: a particle has travelled
+        ``remesh_travel`` radii from where its mesh was built; ``"angle"`` / ``"area"``: the
+        moved mesh's smallest angle or area ratio is below :data:`ALE_MIN_ANGLE` /
+        :data:`ALE_MIN_AREA_RATIO`; ``"ahead"``: it would be after the next step."""
         if np.any(moved > self.scene.remesh_travel * self.radius):
-            return True
+            return "travel"
         s, motion = self.state, self.motion
         if s.nodes_n is None:
-            return False
+            return None
         angle, ratio = mesh_quality(s.nodes_n, motion.t, motion.area_ref)
-        if angle < ALE_MIN_ANGLE or ratio < ALE_MIN_AREA_RATIO:
-            return True
+        if angle < ALE_MIN_ANGLE:
+            return "angle"
+        if ratio < ALE_MIN_AREA_RATIO:
+            return "area"
         if s.dt_prev is None or s.xi_prev is None:
-            return False
+            return None
         # the poses one (largest) step ahead, extrapolated from the last two; checked only
         # when that step moves a particle by more than a tenth of an outline edge, or the
         # mesh is already within 1.5x of the thresholds
@@ -392,9 +399,9 @@ class CoupledStepper:
         reach = lag(q[:2], q[2], ahead[:2], ahead[2], self.radius)
         if (np.all(reach < 0.1 * self.edge) and angle > 1.5 * ALE_MIN_ANGLE
                 and ratio > 1.5 * ALE_MIN_AREA_RATIO):
-            return False
+            return None
         angle, ratio = mesh_quality(motion.positions(ahead), motion.t, motion.area_ref)
-        return angle < ALE_MIN_ANGLE or ratio < ALE_MIN_AREA_RATIO
+        return "ahead" if angle < ALE_MIN_ANGLE or ratio < ALE_MIN_AREA_RATIO else None
 
     def local_error(self, attempt, step: float) -> float | None:
         """Milne estimate of the local error of an attempted step, relative; None if unknown.
@@ -520,7 +527,9 @@ class CoupledStepper:
         data = {"state": self.state, "mesh": self.meshed, "mesh_centers": self.mesh_centers,
                 "mesh_angles": self.mesh_angles, "coupling_centers": self.coupling.centers.copy(),
                 "counters": {"remeshes": self.remeshes, "retries": self.retries,
-                             "rejections": self.rejections, "euler_steps": self.euler_steps}}
+                             "rejections": self.rejections, "euler_steps": self.euler_steps,
+                             **{"remesh_reasons." + k: v
+                                for k, v in self.remesh_reasons.items()}}}
         self.dem.neighbours.invalidate()
         if self.ale:
             # a moved mesh's factorisation depends on where the mesh was when it was made:
@@ -551,4 +560,6 @@ class CoupledStepper:
         c = data["counters"]
         st.remeshes, st.retries = c["remeshes"], c["retries"]
         st.rejections, st.euler_steps = c["rejections"], c["euler_steps"]
+        st.remesh_reasons = {k.split(".", 1)[1]: v for k, v in c.items()
+                             if k.startswith("remesh_reasons.")}
         return st

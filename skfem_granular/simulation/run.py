@@ -464,6 +464,7 @@ class Simulation:
             "t_end": float(hist.t[-1]) if len(hist) else 0.0,
             "dt": sc.time.dt,
             "remeshes": self.remeshes,
+            "remesh_reasons": None if sc.dry else dict(self.stepper.remesh_reasons),
             "retries": self.retries,
             "rejections": self.rejections,
             "euler_steps_at_contacts": self.euler_steps,
@@ -481,7 +482,8 @@ class Simulation:
 
             st = meshing.mesh_stats(self.mesh)
             out["mesh"] = {
-                "kind": sc.mesh.kind,
+                "kind": getattr(getattr(self.stepper.meshed, "recipe", None), "kind",
+                                sc.mesh.kind),  # what "auto" chose
                 "vertices": st.n_vertices,
                 "p2_nodes": st.n_p2_nodes,
                 "triangles": st.n_triangles,
