@@ -90,6 +90,7 @@ class ReferenceBlocks:
         self.phi, self.dphi, self.weights = phi, dphi, W
         self.Mhat = np.einsum("iq,jq,q->ij", phi, phi, W)
         self.S = np.einsum("ikq,jlq,q->klij", dphi, dphi, W)  # (2, 2, 6, 6)
+        self.S4 = np.ascontiguousarray(self.S.reshape(4, 36))
         self.E = np.einsum("mq,jkq,q->kmj", psi, dphi, W)  # (2, 3, 6)
         sdofs = space.sb.element_dofs.T  # (nel, 6)
         vdofs = (2 * sdofs[:, :, None] + np.arange(2)).reshape(-1, 12)  # (nel, 12): 2 i + c
@@ -158,7 +159,7 @@ class ReferenceBlocks:
         nq = self.weights.size
         tab = np.empty((nel, 3 * nq, 6))
         wphi = np.empty((nel, 6, nq))
-        moved_element_data(p, self.t, self.orientation, self.Mhat, self.S, self.E,
+        moved_element_data(p, self.t, self.orientation, self.Mhat, self.S4, self.E,
                            self.dphi, self.phi, self.weights, uu.slot, pu.slot,
                            M, Ks, Kl, B, tab, wphi)
         out = {"tab": tab, "wphi": wphi} if nel else {}

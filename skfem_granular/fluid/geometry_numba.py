@@ -20,7 +20,7 @@ import numpy as np
 
 
 @numba.njit(cache=True)
-def moved_element_data(p, t, orientation, Mhat, S, E, dref, phi, weights, uu_slot, pu_slot,
+def moved_element_data(p, t, orientation, Mhat, S4, E, dref, phi, weights, uu_slot, pu_slot,
                        M, Ks, Kl, B, tab, wphi):  # pragma: no cover (compiled)
     """Accumulate the blocks of the triangles ``t`` at vertex positions ``p``.
 
@@ -32,8 +32,9 @@ def moved_element_data(p, t, orientation, Mhat, S, E, dref, phi, weights, uu_slo
         Triangles.
     orientation : (nel,) ndarray
         Sign of each triangle's determinant in the reference mesh.
-    Mhat, S, E : ndarray
-        Reference integrals ``(6, 6)``, ``(2, 2, 6, 6)``, ``(2, 3, 6)``
+    Mhat, S4, E : ndarray
+        Reference integrals ``(6, 6)``, ``(4, 36)`` (``S[k, l, i, j]`` as ``[2 k + l,
+        6 i + j]``), ``(2, 3, 6)``
         (:class:`~skfem_granular.fluid.geometry.ReferenceBlocks`).
     dref : (6, 2, nq) ndarray
         Reference gradients of the P2 basis at the quadrature points.
@@ -59,8 +60,7 @@ def moved_element_data(p, t, orientation, Mhat, S, E, dref, phi, weights, uu_slo
     mass, symmetric, laplace = M.size > 0, Ks.size > 0, Kl.size > 0
     divergence, tables = B.size > 0, tab.shape[0] > 0
     At = np.empty((2, 2))
-    G = np.empty((2, 2, 6, 6))
-    C = np.empty((2, 2, 4))
+    G3 = np.empty((3, 36))
     for e in range(nel):
         a, b, c_ = t[0, e], t[1, e], t[2, e]
         a00 = p[0, b] - p[0, a]
@@ -81,33 +81,33 @@ def moved_element_data(p, t, orientation, Mhat, S, E, dref, phi, weights, uu_slo
                     for j in range(6):
                         M[uu_slot[base + ((2 * i + c) * 6 + j) * 2 + c]] += det * Mhat[i, j]
         if symmetric or laplace:
-            for c in range(2):
-                for d in range(2):
-                    for k in range(2):
-                        for l in range(2):
-                            C[c, d, 2 * k + l] = det * At[c, k] * At[d, l]
-            for c in range(2):
-                for d in range(2):
-                    for i in range(6):
-                        for j in range(6):
-                            s = 0.0
-                            for k in range(2):
-                                for l in range(2):
-                                    s += C[c, d, 2 * k + l] * S[k, l, i, j]
-                            G[c, d, i, j] = s
+            # G[c, d, i, j] = int d_c phi_i d_d phi_j = sum_kl det At[c, k] At[d, l] S[k, l, i, j]
+            # for (c, d) = (0, 0), (0, 1), (1, 1) as rows of G3 ((i, j) flattened);
+            # G[1, 0, i, j] = G[0, 1, j, i]
+            for r in range(3):
+                c, d = r // 2, (r + 1) // 2
+                c0 = det * At[c, 0] * At[d, 0]
+                c1 = det * At[c, 0] * At[d, 1]
+                c2 = det * At[c, 1] * At[d, 0]
+                c3 = det * At[c, 1] * At[d, 1]
+                for ij in range(36):
+                    G3[r, ij] = c0 * S4[0, ij] + c1 * S4[1, ij] + c2 * S4[2, ij] + c3 * S4[3, ij]
             for i in range(6):
                 for c in range(2):
                     for j in range(6):
-                        lap = G[0, 0, i, j] + G[1, 1, i, j]
-                        for d in range(2):
-                            slot = uu_slot[base + ((2 * i + c) * 6 + j) * 2 + d]
-                            if c == d:
-                                if laplace:
-                                    Kl[slot] += lap
-                                if symmetric:
-                                    Ks[slot] += lap + G[d, c, i, j]
-                            elif symmetric:
-                                Ks[slot] += G[d, c, i, j]
+                        ij = 6 * i + j
+                        lap = G3[0, ij] + G3[2, ij]
+                        row = base + ((2 * i + c) * 6 + j) * 2
+                        if laplace:
+                            Kl[uu_slot[row + c]] += lap
+                        if symmetric:
+                            # + int d_d phi_i d_c phi_j at (i, c, j, d): G[d, c, i, j]
+                            if c == 0:
+                                Ks[uu_slot[row]] += lap + G3[0, ij]
+                                Ks[uu_slot[row + 1]] += G3[1, 6 * j + i]
+                            else:
+                                Ks[uu_slot[row]] += G3[1, ij]
+                                Ks[uu_slot[row + 1]] += lap + G3[2, ij]
         if divergence:
             base = 36 * e
             for m in range(3):
