@@ -270,8 +270,9 @@ def test_two_particles_collide_head_on_and_separate():
     Measured: contact at 8.7 ms, they separate at 1.2 cm/s (energy of grains + fluid
     after / before 0.49), horizontal momentum of the pair 2e-4 of one grain's, no
     inverted element on any of the 12 meshes. On the fixed mesh: with the moving mesh the
-    pair's momentum is 1.4e-3 of one grain's (an asymmetry of the mesh motion on this
-    unsymmetric mesh, not yet explained; issue 12 stays open for it).
+    pair's momentum is 1.0e-3 of one grain's (1.4e-3 before the remesh transfer was made
+    divergence-free; an asymmetry of the mesh motion on this unsymmetric mesh, not yet
+    explained; issue 12 stays open for it).
     """
     parts = [{"center": [2.3e-3, 1.5e-3], "velocity": [0.05, 0.0], "angle": np.pi / 6},
              {"center": [3.7e-3, 1.5e-3], "velocity": [-0.05, 0.0], "angle": np.pi / 6}]

@@ -65,6 +65,7 @@ import numpy as np
 
 from .. import timestep as ts
 from ..fluid.errors import ConvergenceError
+from ..fluid.projection import divergence_free_projection
 from .build import build_coupling, outline_areas, outline_edge
 from .mesh_motion import MeshMotion, mesh_quality
 from .state import CoupledState, StepReport
@@ -240,6 +241,17 @@ class CoupledStepper:
                 tr_prev = FieldTransfer(old_prev, self.reference_space.moved(s.nodes_prev))
         s.u_prev = None if s.u_prev is None else tr_prev.velocity(s.u_prev)
         s.du_prev = None if s.du_prev is None else tr_prev.velocity(s.du_prev)
+        if self.ale:
+            # interpolated fields are not divergence-free on the new mesh: a step started
+            # from them removes the divergence in one step, a pressure impulse ~ 1/dt that
+            # shows as a force spike; project both histories first, each on its own
+            # configuration. (Not on the fixed mesh, whose particle boundary jumps at a
+            # remesh: projecting there changed a colliding pair's momentum, measured.)
+            op = self.coupling.op
+            s.u_n = divergence_free_projection(op, s.u_n)
+            if s.u_prev is not None:
+                op_prev = op if tr_prev is tr else op.moved(tr_prev.new)
+                s.u_prev = divergence_free_projection(op_prev, s.u_prev)
         s.x = np.concatenate([s.u_n, s.p_n])
         s.since_remesh = 0
         # interpolation must not create kinetic energy out of nothing: record the ratio

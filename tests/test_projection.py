@@ -1,0 +1,52 @@
+"""The divergence-free projection applied to fields interpolated onto a new mesh."""
+
+import numpy as np
+from helpers import annulus
+
+import skfem_granular as sg
+from skfem_granular.fluid.boundary import DirichletData
+from skfem_granular.fluid.operator import NavierStokesOperator
+from skfem_granular.fluid.projection import divergence_free_projection
+
+
+def _setup():
+    space = sg.TaylorHood(annulus(1e-3, 2e-3, 32, 64, (8e-5) ** 2))
+    bc = {"inner": (0.0, 1e-2), "outer": (0.0, 0.0)}
+    op = NavierStokesOperator(space, sg.Fluid(1000.0, 1e-3), DirichletData(space, bc))
+    x = op.apply_dirichlet(np.zeros(space.N))
+    X = space.velocity_doflocs
+    u = x[: space.nu] + 1e-3 * np.sin(3e3 * X[0]) * np.cos(2e3 * X[1])
+    u[op.dirichlet.dofs] = x[op.dirichlet.dofs]
+    return space, op, u
+
+
+def _M_norm(space, v):
+    return float(np.sqrt(v @ (space.M @ v)))
+
+
+def test_projection_is_divergence_free_keeps_boundary_values_and_is_idempotent():
+    space, op, u = _setup()
+    div0 = np.abs(space.B @ u).max()
+    v = divergence_free_projection(op, u)
+    assert np.abs(space.B @ v).max() <= 1e-10 * div0  # B v = 0 to round-off
+    d = op.dirichlet.dofs
+    assert np.array_equal(v[d], u[d])
+    w = divergence_free_projection(op, v)
+    assert np.abs(w - v).max() <= 1e-12 * np.abs(v).max()
+
+
+def test_projection_is_the_nearest_divergence_free_field():
+    # v = P(u) is divergence-free with u's boundary values; any other such field is
+    # farther from u in the M-norm, e.g. v + e for an interior e projected itself
+    space, op, u = _setup()
+    v = divergence_free_projection(op, u)
+    rng = np.random.default_rng(1)
+    e = np.zeros(space.nu)
+    interior = np.setdiff1d(np.arange(space.nu), op.dirichlet.dofs)
+    e[interior] = 1e-4 * rng.standard_normal(interior.size)
+    other = divergence_free_projection(op, v + e)  # divergence-free, same boundary values
+    assert np.abs(space.B @ other).max() <= 1e-10 * np.abs(space.B @ u).max()
+    assert _M_norm(space, u - v) <= _M_norm(space, u - other) * (1 + 1e-12)
+    # the residual u - v is M-orthogonal to divergence-free interior fields
+    assert abs((u - v) @ (space.M @ (other - v))) <= 1e-9 * _M_norm(space, u - v) \
+        * _M_norm(space, other - v)
