@@ -6,7 +6,7 @@ The fluid half (Taylor-Hood P2/P1 on scikit-fem) lives in
 :mod:`meshing`.
 """
 
-from .dem import Polygon
+from .dem import Polygon, PrescribedMotion
 from .fluid import (
     ConvergenceError,
     Flow,
@@ -23,6 +23,7 @@ from .simulation import Simulation, SimulationError, SimulationResult
 __version__ = "0.1.0"
 
 __all__ = ["BDF2Integrator", "ConvergenceError", "Effects", "Flow", "Fluid", "MeshSpec",
-           "ParticleSpec", "Polygon", "RigidMotion", "Scene", "Simulation", "SimulationError",
+           "ParticleSpec", "Polygon", "PrescribedMotion", "RigidMotion", "Scene", "Simulation",
+           "SimulationError",
            "SimulationResult",
            "SolveReport", "TaylorHood", "TimeSpec", "evolve", "solve_steady"]

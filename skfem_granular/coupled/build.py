@@ -51,4 +51,4 @@ def build_coupling(scene, mesh, dem, centers=None):
     centers = dem.positions.copy() if centers is None else np.array(centers, dtype=float)
     return cls(space, scene.fluid, walls, centers, dem.mass.copy(),
                dem.inertia.copy(), convection=scene.effects.convection,
-               rotation=scene.effects.rotation)
+               rotation=scene.effects.rotation, imposed=dem.imposed.copy())

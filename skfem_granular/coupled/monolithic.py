@@ -13,7 +13,10 @@ every boundary node), and solves fluid and particles in one system::
 whose Jacobian is ``E^T J_f E + a0 diag(m, m, I)``. The fluid force on a
 particle is the consistent (reaction) force ``-P_k^T R_f``; it comes out of
 the solve, so the scheme is stable for every density ratio (no added-mass
-instability). :class:`PartitionedCoupling` is the paper's explicit scheme:
+instability). Particles with a prescribed motion have no rigid DOFs in ``z``:
+their boundary values ``V + omega x (x - X)`` are known and go into ``x_D``, and
+their force is the same reaction ``-P_k^T R_f``. :class:`PartitionedCoupling` is
+the paper's explicit scheme:
 particle velocities from the DEM are Dirichlet data of a fluid solve whose
 force then drives the DEM step.
 
@@ -39,14 +42,11 @@ from ..fluid.linsolve import make_solver
 from ..fluid.newton import chord_converged, newton_iterate
 from .rigid import RigidParticles
 
-#: Moving mesh: when the chord iteration contracts by less than this per iteration, the
-#: corrections switch to GMRES on the exact Jacobian (ALE convection linearised), the
-#: factorisation as preconditioner.
-KRYLOV_RATE = 0.3
-
-#: Moving mesh: relative residual reduction asked of each GMRES correction (an inexact
-#: Newton step: the outer iteration checks the update against ``newton_tol``).
-KRYLOV_RTOL = 1e-4
+#: When the chord iteration contracts by less than this per iteration (the ALE convection
+#: ``(u - w) . grad u`` with ``w`` over the whole moving region, or strong convection, far
+#: from the chord operator), the coupled Newton Jacobian is factorised at the iterate and
+#: the iteration continues on it (and later steps with the same ``a0`` reuse it).
+REFRESH_RATE = 0.3
 
 
 class MonolithicCoupling(RigidParticles):
@@ -74,13 +74,18 @@ class MonolithicCoupling(RigidParticles):
     newton_tol : float
         Iterations stop when the update is below ``newton_tol`` times the
         velocity scale.
+    imposed : (K,) array_like of bool, optional
+        Particles with a prescribed motion: no rigid DOFs of theirs in the system
+        (their boundary values are Dirichlet data, ``step(xi_imposed=...)``); the
+        fluid force on them is the same consistent reaction ``-P_k^T R_f``.
     """
 
     def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
                  convection: bool = True, rotation: bool = True, solver: str = "auto",
-                 newton_tol: float = 1e-8, max_iterations: int = 15):
+                 newton_tol: float = 1e-8, max_iterations: int = 15, imposed=None):
         super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
-                         rotation=rotation)
+                         rotation=rotation, imposed=imposed)
+        self._xi_imposed = None  # the imposed particles' rigid velocities of the step
         self.newton_tol = newton_tol
         self.max_iterations = max_iterations
         self._build_prolongation()
@@ -108,7 +113,8 @@ class MonolithicCoupling(RigidParticles):
         p_free = nu + np.flatnonzero(~fixed[nu:])
         r = self.ndof_rigid
         self.n_ufree = u_free.size
-        self.nu_z = u_free.size + r * self.K  # "velocity-like" unknowns come first
+        # "velocity-like" unknowns come first; imposed particles have no rigid unknowns
+        self.nu_z = u_free.size + r * self.free_particles.size
         self.nz = self.nu_z + p_free.size
         self._u_free, self._p_free = u_free, p_free
         self.rigid_slice = slice(u_free.size, self.nu_z)
@@ -124,9 +130,9 @@ class MonolithicCoupling(RigidParticles):
         rows = [u_free, p_free]
         cols = [np.arange(u_free.size), self.nu_z + np.arange(p_free.size)]
         vals = [np.ones(u_free.size), np.ones(p_free.size)]
-        for k in range(self.K):
+        for j, k in enumerate(self.free_particles):
             d, c, lever = self.levers(k)
-            base = u_free.size + r * k
+            base = u_free.size + r * j
             rows += [d]
             cols += [base + c.astype(np.int64)]
             vals += [np.ones(d.size)]
@@ -135,7 +141,8 @@ class MonolithicCoupling(RigidParticles):
                 cols += [np.full(d.size, base + 2)]
                 vals += [lever]
         if getattr(self, "_lever_slots", None) is not None:  # moved mesh: new lever values only
-            levers = np.concatenate([self.levers(k)[2] for k in range(self.K)])
+            levers = np.concatenate([self.levers(k)[2] for k in self.free_particles]
+                                    or [np.zeros(0)])
             self.E.data[self._lever_slots[0]] = levers
             self.ET.data[self._lever_slots[1]] = levers
             return
@@ -145,7 +152,7 @@ class MonolithicCoupling(RigidParticles):
         if self.rotation:  # where the lever values sit in E and E^T, for moved meshes
             marks = [np.zeros(u_free.size), np.zeros(p_free.size)]
             n_lever = 0
-            for k in range(self.K):
+            for k in self.free_particles:
                 d = self.particle_dofs[k]
                 marks += [np.zeros(d.size), n_lever + 1 + np.arange(d.size, dtype=float)]
                 n_lever += d.size
@@ -181,14 +188,19 @@ class MonolithicCoupling(RigidParticles):
         self._assemble_prolongation()
 
     def rigid(self, z: np.ndarray) -> np.ndarray:
-        """Rigid DOFs ``(3, K)`` (``Vx, Vy, omega``) of an unknown vector ``z``."""
-        xi = z[self.rigid_slice].reshape(self.K, self.ndof_rigid).T
+        """Rigid DOFs ``(3, K)`` (``Vx, Vy, omega``) of an unknown vector ``z`` (the
+        imposed particles' columns: the step's ``xi_imposed``)."""
+        free = self.free_particles
+        xi = z[self.rigid_slice].reshape(free.size, self.ndof_rigid).T
         out = np.zeros((3, self.K))
-        out[: self.ndof_rigid] = xi
+        out[: self.ndof_rigid, free] = xi
+        if self._xi_imposed is not None:
+            out[:, self.imposed] = self._xi_imposed[:, self.imposed]
         return out
 
     def _rigid_vector(self, xi3: np.ndarray) -> np.ndarray:
-        return np.asarray(xi3, dtype=float)[: self.ndof_rigid].T.ravel()
+        """The rigid unknowns (free particles') of ``(3, K)`` values, as ``z`` orders them."""
+        return np.asarray(xi3, dtype=float)[: self.ndof_rigid][:, self.free_particles].T.ravel()
 
     def x_dirichlet(self, t: float | None = None) -> np.ndarray:
         """Full fluid vector holding the wall values only."""
@@ -207,14 +219,29 @@ class MonolithicCoupling(RigidParticles):
     # ------------------------------------------------------------------ algebra
     def _inertia_diag(self) -> np.ndarray:
         m = np.stack([self.mass, self.mass, self.inertia])[: self.ndof_rigid]
-        return m.T.ravel()
+        return m[:, self.free_particles].T.ravel()
 
-    def _coupled_system(self, a0: float):
-        """``E^T J E + a0 diag(m, m, I)`` for the factorisation cache."""
+    def _coupled_system(self, a0: float, x: np.ndarray | None = None):
+        """``E^T J E + a0 diag(m, m, I)`` for the factorisation cache: ``J`` the BDF2-Stokes
+        matrix, or with ``x`` (full fluid vector) the Newton Jacobian there, the convection
+        linearised (``((u - w) . grad) du + (du . grad) u`` on a moving mesh)."""
         # where the mesh was when factorised (a moved mesh's checkpoint rebuilds it there)
-        self.factorized_on = (self.space.mesh.p, self.centers.copy())
+        w = self.w_mesh
+        self.factorized_on = (self.space.mesh.p, self.centers.copy(),
+                              None if x is None else np.array(x, dtype=float),
+                              None if x is None or w is None else np.array(w, dtype=float))
         A_uu = self.op.velocity_block(a0)
-        J = self.op.matrix(A_uu)
+        A = A_uu
+        if x is not None and (self.op.convection or w is not None):
+            kern, rho = self.space.convection, self.fluid.density
+            N = None
+            if self.op.convection:
+                N = kern.jacobian(x[: self.space.nu], newton=True)
+            if w is not None:
+                Nw = kern.jacobian(w, newton=False)
+                N = -Nw if N is None else N - Nw
+            A = A_uu + rho * N
+        J = self.op.matrix(A)
         Jz = (self.ET @ J @ self.E).tocsr()
         diag = np.zeros(self.nz)
         diag[self.rigid_slice] = a0 * self._inertia_diag()
@@ -224,38 +251,12 @@ class MonolithicCoupling(RigidParticles):
         Mp = sp_.Mp[np.sort(pf)][:, np.sort(pf)]
         return A_uu, Jz, self.nu_z, dict(Mp=Mp, ordering=self._ordering)
 
-    def _gmres_correction(self, z, x_D, G, A_uu, a0, solve):
-        """Newton correction by GMRES on the coupled Jacobian at ``z`` (matrix-free), with
-        the factorised chord operator as preconditioner; the mesh stays where it is."""
-        import scipy.sparse.linalg as spla
-
-        op, sp_ = self.op, self.space
-        nu, rho = sp_.nu, self.fluid.density
-        kern = sp_.convection
-        u = (self.E @ z + x_D)[:nu]
-        w = self.w_mesh
-        wind = u if w is None else u - w
-        A_uu = self.factors.A_uu if A_uu is None else A_uu
-        inertia = a0 * self._inertia_diag()
-
-        def matvec(v):
-            xv = self.E @ v
-            du = xv[:nu]
-            r = op.residual(xv, rhs_u=None, A_uu=A_uu)  # linear part (+ N(du) du, - f)
-            r[:nu] += op.f
-            if op.convection:
-                r[:nu] += rho * (kern.apply(wind, du) + kern.apply(du, u) - kern.residual(du))
-            elif w is not None:
-                r[:nu] += rho * kern.apply(-w, du)
-            out = self.ET @ r
-            out[self.rigid_slice] += inertia * v[self.rigid_slice]
-            return out
-
-        n = self.nz
-        J = spla.LinearOperator((n, n), matvec=matvec, dtype=float)
-        P = spla.LinearOperator((n, n), matvec=solve, dtype=float)
-        dz, _ = spla.gmres(J, -G, M=P, rtol=KRYLOV_RTOL, atol=0.0, restart=30, maxiter=10)
-        return dz
+    def factorize_jacobian(self, x: np.ndarray, a0: float) -> None:
+        """Factorise the coupled Newton Jacobian at the fluid state ``x`` (full vector) on
+        the mesh in use (with its mesh velocity) and hold it as the chord operator for
+        ``a0`` (:meth:`FactorCache.factorize_system`); :attr:`factorized_on` records
+        where, so that a checkpoint can rebuild it."""
+        self.factors.factorize_system(a0, self._coupled_system(a0, x))
 
     def residual(self, z, x_D, rhs_u, rigid_rhs, A_uu=None):
         """Coupled residual and the fluid residual behind it (``A_uu``: the velocity block
@@ -270,7 +271,7 @@ class MonolithicCoupling(RigidParticles):
 
     def step(self, dt: float, dt_prev: float | None, u_n, u_prev, xi_n, xi_prev,
              F_ext, T_ext, t_new: float, p_guess=None, u_guess=None, xi_guess=None,
-             geometry=None):
+             geometry=None, xi_imposed=None):
         """Solve one BDF2 (or backward-Euler when ``dt_prev`` is None) step.
 
         Parameters
@@ -291,6 +292,9 @@ class MonolithicCoupling(RigidParticles):
             ``xi`` ``(3, K)``, or ``None`` when the mesh in use is still that one. It is
             asked before every residual evaluation, so the positions at the end of the
             step are part of the iteration (the chord operator stays the factorised one).
+        xi_imposed : (3, K) ndarray, optional
+            The rigid velocities at ``t_new`` of the imposed particles (their columns;
+            the others are not read): Dirichlet data on their outlines.
 
         Returns
         -------
@@ -298,6 +302,15 @@ class MonolithicCoupling(RigidParticles):
             ``x`` (full fluid vector), ``xi`` (3, K), ``force`` (2, K),
             ``torque`` (K,), ``iterations``.
         """
+        self._xi_imposed = None
+        if self.imposed.any():
+            if xi_imposed is None:
+                raise ValueError("MonolithicCoupling.step: xi_imposed (3, K) is required: "
+                                 "the coupling has particles with a prescribed motion")
+            self._xi_imposed = np.array(xi_imposed, dtype=float).reshape(3, self.K)
+            # the imposed particles where their motion puts them, from the first mesh on
+            xi_guess = np.array(xi_n if xi_guess is None else xi_guess, dtype=float)
+            xi_guess[:, self.imposed] = self._xi_imposed[:, self.imposed]
         a0, a1, a2 = ts.bdf2_coefficients(dt, dt_prev)
         rho = self.fluid.density
         hist_u = a1 * u_n + (a2 * u_prev if dt_prev is not None else 0.0)
@@ -321,7 +334,7 @@ class MonolithicCoupling(RigidParticles):
 
         if geometry is not None:
             refresh(xi_n if xi_guess is None else xi_guess)
-        x_D = self.x_dirichlet(t_new)
+        x_D = self.imposed_values(self.x_dirichlet(t_new), self._xi_imposed)
         x0 = np.zeros(self.space.N)
         x0[: self.space.nu] = u_n if u_guess is None else u_guess
         if p_guess is not None:
@@ -332,7 +345,7 @@ class MonolithicCoupling(RigidParticles):
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
         solve = self.solver.solve_correction if self.op.convection else self.solver.solve
-        last = {"dn": 0.0, "krylov": False}
+        last = {"dn": 0.0, "refresh": False, "refreshed": 0}
 
         def stop(it, dz, z):
             if not self.op.convection and geometry is None:
@@ -343,17 +356,17 @@ class MonolithicCoupling(RigidParticles):
             tol = self.newton_tol * max(scale, float(np.abs(z[: self.nu_z]).max()))
             prev, last["dn"] = last["dn"], dn
             done = chord_converged(dn, prev, it, tol)
-            if geometry is None:
-                return done
-            if not done and not last["krylov"] and it >= 2 and dn > KRYLOV_RATE * prev:
-                # the ALE convection (u - w) . grad u, with w over the whole moving region,
-                # is far from the chord operator: Newton-GMRES preconditioned by it
-                last["krylov"] = True
+            if (not done and it >= last["refreshed"] + 2 and dn > REFRESH_RATE * prev
+                    and (self.op.convection or geometry is not None)):
+                # the chord operator (the BDF2-Stokes matrix, or an older Jacobian) is too
+                # far from this step's: a fresh Newton Jacobian before the next correction
+                last["refresh"] = True
             return done
 
         def correct(z, G, it):
-            if last["krylov"]:
-                return self._gmres_correction(z, x_D, G, current["A_uu"], a0, solve)
+            if last["refresh"]:
+                last["refresh"], last["refreshed"] = False, it
+                self.factorize_jacobian(self.E @ z + x_D, a0)
             return -solve(G)
 
         def residual(z):

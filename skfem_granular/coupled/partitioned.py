@@ -39,6 +39,9 @@ class PartitionedCoupling(RigidParticles):
     coupling_tol : float
         Sub-iterations stop when the particle velocity changes by less than
         this, relative to the velocity scale.
+    imposed : (K,) array_like of bool, optional
+        Particles with a prescribed motion (``step(xi_imposed=...)``): their
+        velocities are the fluid's boundary data, no corrector.
     """
 
     def __init__(
@@ -58,9 +61,10 @@ class PartitionedCoupling(RigidParticles):
         coupling_tol: float = 1e-8,
         newton_tol: float = 1e-9,
         max_iterations: int = 15,
+        imposed=None,
     ):
         super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
-                         rotation=rotation)
+                         rotation=rotation, imposed=imposed)
         self.subiterations = int(subiterations)
         if relaxation != "aitken" and not 0.0 < float(relaxation) <= 1.0:
             raise ValueError(f"relaxation = {relaxation!r}: must be 'aitken' or in (0, 1]")
@@ -110,8 +114,14 @@ class PartitionedCoupling(RigidParticles):
         p_guess=None,
         u_guess=None,
         xi_guess=None,
+        xi_imposed=None,
     ):
-        """One staggered step; returns the same dictionary as the monolithic coupling."""
+        """One staggered step; returns the same dictionary as the monolithic coupling
+        (``xi_imposed`` as there: the imposed particles' velocities at ``t_new``)."""
+        imposed = self.imposed if self.imposed.any() else None
+        if imposed is not None and xi_imposed is None:
+            raise ValueError("PartitionedCoupling.step: xi_imposed (3, K) is required: the "
+                             "coupling has particles with a prescribed motion")
         sp_, op = self.space, self.op
         a0, a1, a2 = ts.bdf2_coefficients(dt, dt_prev)
         self.factors.operator(a0)
@@ -125,6 +135,9 @@ class PartitionedCoupling(RigidParticles):
         if not self.rotation:
             xi = xi.copy()
             xi[2] = 0.0
+        if imposed is not None:
+            xi = xi.copy()
+            xi[:, imposed] = np.asarray(xi_imposed, dtype=float)[:, imposed]
         x = np.zeros(sp_.N)
         x[: sp_.nu] = u_n
         if p_guess is not None:
@@ -147,6 +160,8 @@ class PartitionedCoupling(RigidParticles):
             xi_new = ((ext + np.vstack([F, T[None, :]])) / m3 - hist_xi) / a0
             if not self.rotation:
                 xi_new[2] = 0.0
+            if imposed is not None:
+                xi_new[:, imposed] = xi[:, imposed]
             r = (xi_new - xi).ravel()
             changes.append(float(np.abs(r).max()))
             # the fixed-point map amplifies by ~C_a rho_f / rho_p: growing changes = divergence

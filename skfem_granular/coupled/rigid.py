@@ -31,11 +31,16 @@ class RigidParticles:
     mass, inertia : (K,) array_like
         Masses and moments of inertia per unit depth.
     convection, rotation : bool
-        Navier-Stokes or unsteady Stokes; whether particles may rotate.
+        Navier-Stokes or unsteady Stokes; whether the free particles may rotate.
+    imposed : (K,) array_like of bool, optional
+        Particles whose motion is prescribed: their rigid velocities are given to
+        each step (``xi_imposed``) as Dirichlet data, not solved for (with their
+        rotation, whatever ``rotation`` says); the fluid force on them is reported
+        as on the others. Default: none.
     """
 
     def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
-                 convection: bool = True, rotation: bool = True):
+                 convection: bool = True, rotation: bool = True, imposed=None):
         self.space = space
         self.fluid = fluid
         self.K = int(np.asarray(mass).size)
@@ -43,6 +48,10 @@ class RigidParticles:
         self.mass = np.asarray(mass, dtype=float).reshape(self.K)
         self.inertia = np.asarray(inertia, dtype=float).reshape(self.K)
         self.rotation = bool(rotation)
+        self.imposed = (np.zeros(self.K, dtype=bool) if imposed is None
+                        else np.asarray(imposed, dtype=bool).reshape(self.K))
+        #: the particles whose rigid velocities are unknowns
+        self.free_particles = np.flatnonzero(~self.imposed)
         names = [f"particle{k}" for k in range(self.K)]
         specs = dict(walls)
         specs.update({n: (0.0, 0.0) for n in names})
@@ -57,6 +66,16 @@ class RigidParticles:
         """DOFs of particle ``k``, their components and ``e_z x (x - X)`` at them."""
         d = self.particle_dofs[k]
         return d, self.space.component[d], rigid_lever(self.space, d, self.centers[:, k])
+
+    def imposed_values(self, x: np.ndarray, xi_imposed) -> np.ndarray:
+        """Write the rigid velocities ``xi_imposed`` ``(3, K)`` of the imposed particles
+        onto their boundary DOFs of the full vector ``x`` (in place; returns ``x``)."""
+        if xi_imposed is None:
+            return x
+        for k in np.flatnonzero(self.imposed):
+            d, c, lever = self.levers(k)
+            x[d] = np.where(c == 0, xi_imposed[0, k], xi_imposed[1, k]) + xi_imposed[2, k] * lever
+        return x
 
     def forget_factorization(self) -> None:
         """Factorise anew on the next step (as a coupling rebuilt from a checkpoint does)."""

@@ -31,6 +31,13 @@ One step (monolithic coupling, the default):
    restored first); the following steps grow back by at most 2x per step
    (variable-step BDF2 is zero-stable below 1 + sqrt(2)).
 
+Particles with a prescribed motion (:class:`~skfem_granular.dem.PrescribedMotion`)
+are at their motion's pose at the end of every step; their rigid velocities are
+the BDF2 derivative of those poses (so the pose the BDF2 formula gives back from
+them, e.g. for the moving mesh, is the prescribed one), handed to the coupling as
+known Dirichlet data (``xi_imposed``) instead of being solved for; the force on
+them is the coupling's consistent reaction force, reported as for free particles.
+
 Adaptive steps (``time.adaptive``) follow the local error as
 :func:`~skfem_granular.fluid.evolve` does: an AB2 predictor of the fluid
 velocities and the rigid velocities, Milne's device on the predictor-corrector
@@ -64,6 +71,7 @@ import time
 import numpy as np
 
 from .. import timestep as ts
+from ..dem.motion import pose_derivative
 from ..fluid.errors import ConvergenceError
 from ..fluid.projection import divergence_free_projection
 from .build import build_coupling, outline_areas, outline_edge
@@ -82,6 +90,9 @@ VELOCITY_FLOOR = 1e-6
 
 #: Backward-Euler steps after the last step with a contact force (module notes).
 EULER_AFTER_CONTACT = 2
+
+#: Moving mesh: why a remesh happened (:meth:`CoupledStepper._ale_remesh_reason`).
+REMESH_REASONS = ("travel", "angle", "area", "ahead")
 
 #: Moving mesh: remesh when the smallest angle of the moved mesh falls below this (degrees).
 ALE_MIN_ANGLE = 12.0
@@ -149,7 +160,7 @@ class CoupledStepper:
         self.remeshes = self.retries = self.rejections = self.euler_steps = 0
         self.remesh_energy_ratios = []
         #: moving mesh: why it was remeshed, ``{reason: count}`` (:meth:`_ale_remesh_reason`)
-        self.remesh_reasons = {}
+        self.remesh_reasons = dict.fromkeys(REMESH_REASONS, 0)
         self._set_mesh(mesh, centers, angles)
         self.state = CoupledState(u_n=np.zeros(self.space.nu), p_n=None,
                                   x=np.zeros(self.space.N), F_held=np.zeros((2, dem.n)),
@@ -203,7 +214,7 @@ class CoupledStepper:
             reason = self._ale_remesh_reason(moved)
             if reason is None:
                 return
-            self.remesh_reasons[reason] = self.remesh_reasons.get(reason, 0) + 1
+            self.remesh_reasons[reason] += 1
         elif not np.any(moved > sc.remesh_fraction * self.edge):
             return
         if not sc.effects.remeshing:
@@ -284,6 +295,9 @@ class CoupledStepper:
         F_c = (dem.mass * (dem.velocities - v0) / dt - np.outer(self.g, dem.mass)
                - dem.external_force)
         T_c = dem.inertia * (dem.angular_velocities - w0) / dt - dem.external_torque
+        if dem.imposed.any():  # moved by their motion, not by forces: no contact force
+            F_c[:, dem.imposed] = 0.0
+            T_c[dem.imposed] = 0.0
         return F_c, T_c, dem.particles.q.copy()
 
     def _contact_force_acted(self, xi_n, step, F_ext, F_c, T_c) -> bool:
@@ -329,6 +343,12 @@ class CoupledStepper:
             geometry = self._geometry(a0, a1, a2, q_n, s.q_prev if dt_prev is not None else None,
                                       q_dem if self.contacts_active else None)
         moving = {} if geometry is None else {"geometry": geometry}
+        imposed = dem.imposed if dem.imposed.any() else None
+        if imposed is not None:
+            # prescribed motions: the poses at t_{n+1} are the motions'; the velocities their
+            # BDF2 derivative (so the pose the BDF2 formula gives back, e.g. the mesh's, is it)
+            q_imp = dem.prescribed_poses(s.t + step)
+            moving["xi_imposed"] = pose_derivative(q_imp, q_n, s.q_prev, step, dt_prev)
         res = self.coupling.step(step, dt_prev, s.u_n, u_prev, xi_n, xi_prev, F_ext, T_ext,
                                  s.t + step, p_guess=s.p_n, u_guess=u_guess, xi_guess=xi_guess,
                                  **moving)
@@ -337,6 +357,9 @@ class CoupledStepper:
             q_new = q_dem
         else:
             q_new = (xi_new - a1 * q_n - (a2 * s.q_prev if dt_prev is not None else 0.0)) / a0
+        if imposed is not None:  # exactly on the trajectory
+            q_new = q_new.copy()
+            q_new[:, imposed] = q_imp[:, imposed]
         x = res["x"]
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(q_new))):
             raise ConvergenceError(f"step at t={s.t + step:.6g}: the solution contains NaN/inf")
@@ -546,12 +569,17 @@ class CoupledStepper:
         if self.ale:
             # a moved mesh's factorisation depends on where the mesh was when it was made:
             # keep it, and let a resumed stepper make the same one there
+            # (the linear operator, or a Newton Jacobian at a recorded state: factor_x,
+            # with the mesh velocity factor_w)
             on = getattr(self.coupling, "factorized_on", None)
             a0 = self.coupling.factors.a0
-            data.update(factor_a0=a0, factor_nodes=None if a0 is None else on[0],
-                        factor_centers=None if a0 is None else on[1])
+            held = a0 is not None and on is not None
+            data.update(factor_a0=a0 if held else None, factor_nodes=on[0] if held else None,
+                        factor_centers=on[1] if held else None,
+                        factor_x=on[2] if held else None, factor_w=on[3] if held else None)
         else:
-            data.update(factor_a0=None, factor_nodes=None, factor_centers=None)
+            data.update(factor_a0=None, factor_nodes=None, factor_centers=None,
+                        factor_x=None, factor_w=None)
             self.coupling.forget_factorization()
         return data
 
@@ -564,8 +592,11 @@ class CoupledStepper:
         st.state = data["state"]
         if st.ale and data.get("factor_a0") is not None:  # the writer's factorisation
             st.coupling.move(st.reference_space.moved(data["factor_nodes"]),
-                             data["factor_centers"], None)
-            st.coupling.factors.operator(data["factor_a0"])
+                             data["factor_centers"], data["factor_w"])
+            if data["factor_x"] is None:
+                st.coupling.factors.operator(data["factor_a0"])
+            else:
+                st.coupling.factorize_jacobian(data["factor_x"], data["factor_a0"])
         if st.ale and st.state.nodes_n is not None:  # the mesh where the last step left it
             st.coupling.move(st.reference_space.moved(st.state.nodes_n),
                              data["coupling_centers"], None)

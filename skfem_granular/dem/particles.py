@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .motion import PrescribedMotion
 from .polygon import Polygon
 
 #: core/shadow size ratio used when a particle specifies no core
@@ -42,6 +43,12 @@ class Particle:
         Alternatively, core outline = shadow offset inwards by this distance.
         With neither given, the core is the shadow scaled by
         :data:`DEFAULT_CORE_RATIO` (0.8, inside the 0.7-0.95 literature range).
+    motion
+        A :class:`~skfem_granular.dem.motion.PrescribedMotion`: the particle moves along
+        it whatever the forces (kinematic); ``None`` (default): a free particle. A
+        constant motion sets the initial velocity (leave ``velocity`` and
+        ``angular_velocity`` at 0 or give the same values); a table or a function
+        must start at the particle's pose at ``t = 0``.
     """
 
     shape: Polygon
@@ -50,6 +57,7 @@ class Particle:
     angular_velocity: float = 0.0
     core_ratio: float | None = None
     core_offset: float | None = None
+    motion: PrescribedMotion | None = None
 
 
 def pad_outlines(outlines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -95,6 +103,22 @@ def _positive(name: str, field: str, value) -> float:
     return v
 
 
+def _motion(name: str, motion, start, vel, om, radius):
+    """``motion`` checked against the particle it moves (one-line errors naming it)."""
+    if motion is None:
+        return None
+    if not isinstance(motion, PrescribedMotion):
+        raise ValueError(f"{name}.motion = {motion!r}: must be a PrescribedMotion or None")
+    if motion.kind == "constant" and (np.any(vel != 0) or om != 0):
+        given = np.array([vel[0], vel[1], om])
+        if not np.array_equal(given, motion.initial_velocity()):
+            raise ValueError(f"{name}.velocity = {list(vel)}, angular_velocity = {om:g}: a "
+                             "particle with a constant motion moves at its motion's velocity "
+                             "(leave them out)")
+    motion.check_start(name, start, radius)
+    return motion
+
+
 class ParticleArrays:
     """State and properties of all particles, in arrays.
 
@@ -112,6 +136,12 @@ class ParticleArrays:
     shadow_local, core_local
         ``(N, nmax, 2)`` padded outlines relative to the centroid at angle 0;
         ``shadow_count``, ``core_count`` their true vertex counts.
+    motions : list
+        ``(N,)`` :class:`~skfem_granular.dem.motion.PrescribedMotion` or ``None``.
+    imposed : (N,) bool ndarray
+        Which particles move along a prescribed motion.
+    start : (3, N) ndarray
+        The poses at ``t = 0`` (where constant motions start from).
     """
 
     def __init__(self, particles):
@@ -123,6 +153,7 @@ class ParticleArrays:
         self.inertia = np.empty(N)
         self.q = np.zeros((3, N))
         self.v = np.zeros((3, N))
+        self.motions = []
         for k, p in enumerate(particles):
             name = f"particles[{k}]"
             if not isinstance(p, Particle):
@@ -155,6 +186,12 @@ class ParticleArrays:
             self.q[:2, k] = shape.centroid
             self.v[:2, k] = vel
             self.v[2, k] = om
+            self.motions.append(_motion(name, p.motion, self.q[:, k], vel, om,
+                                        float(np.hypot(*(shape.vertices - c)).max())))
+            if p.motion is not None:
+                self.v[:, k] = p.motion.initial_velocity(vel, om)
+        self.imposed = np.array([m is not None for m in self.motions], dtype=bool)
+        self.start = self.q.copy()
         self.mass = self.density * self.area
         self.shadow_local, self.shadow_count = pad_outlines(shadows)
         self.core_local, self.core_count = pad_outlines(cores)

@@ -10,6 +10,7 @@ from . import overlap_numba, pipeline
 from .broadphase import NeighbourList
 from .contact_law import ContactHistory, ContactLaw
 from .integrator import BDF2History, correct, predict, stable_time_step
+from .motion import pose_derivative
 from .particles import Body, ParticleArrays, rotate_outlines
 from .walls import WallArrays, box_walls
 
@@ -69,6 +70,12 @@ class DEMSystem:
         Total force and torque of the last evaluation.
     contacts
         :class:`~skfem_granular.dem.contact_law.ContactForces` of the last step.
+    imposed
+        ``(N,)`` bool: the particles with a prescribed motion
+        (:class:`~skfem_granular.dem.motion.PrescribedMotion`). They move along it
+        whatever the forces: each step puts them at the motion's pose, with the BDF2
+        derivative of their poses as velocity (:func:`~skfem_granular.dem.motion.pose_derivative`);
+        for the others they are moving walls.
 
     Notes
     -----
@@ -120,6 +127,7 @@ class DEMSystem:
         self._wall_vertices = _repad(self.walls.vertices, nmax)
         self._count = np.concatenate([p.shadow_count, self.walls.count]).astype(np.int64)
         self.positions = p.q[:2]
+        self.imposed = p.imposed
         self.angles = p.q[2]
         self.velocities = p.v[:2]
         self.angular_velocities = p.v[2]
@@ -257,6 +265,15 @@ class DEMSystem:
         a[2] = T / self.inertia
         return a, cf
 
+    def prescribed_poses(self, t: float) -> np.ndarray:
+        """Poses ``(3, N)`` of the particles with a prescribed motion at time ``t``
+        (the other columns hold the current poses)."""
+        p = self.particles
+        q = p.q.copy()
+        for k in np.flatnonzero(self.imposed):
+            q[:, k] = p.motions[k].pose(t, p.start[:, k])
+        return q
+
     def reset_history(self) -> None:
         """Forget the BDF2 history (call after changing positions/velocities by hand)."""
         self.bdf2 = BDF2History()
@@ -283,8 +300,16 @@ class DEMSystem:
         if self.bdf2.a is None:
             self.bdf2.a, self.contacts = self.evaluate(p.q, p.v, self.t, 0.0)
         qp, vp = predict(p.q, p.v, self.bdf2, dt)
+        imposed = self.imposed
+        if imposed.any():  # kinematic particles: where their motion puts them
+            q_imp = self.prescribed_poses(self.t + dt)
+            v_imp = pose_derivative(q_imp, p.q, h.q_prev, dt,
+                                    h.dt_prev if h.q_prev is not None else None)
+            qp[:, imposed], vp[:, imposed] = q_imp[:, imposed], v_imp[:, imposed]
         a, cf = self.evaluate(qp, vp, self.t + dt, dt)
         q_new, v_new = correct(p.q, p.v, self.bdf2, a, dt)
+        if imposed.any():
+            q_new[:, imposed], v_new[:, imposed] = q_imp[:, imposed], v_imp[:, imposed]
         p.q[...] = q_new
         p.v[...] = v_new
         self.contact_history.replace(cf.keys, cf.ft_spring)

@@ -45,6 +45,8 @@ class FactorCache:
         self.timings = timings
         self.a0: float | None = None
         self.A_uu: sp.csr_matrix | None = None
+        self.factorizations = 0  # of the linear operator (a0 changed, or cleared)
+        self.refreshes = 0  # factorisations of another system (factorize_system)
 
     def operator(self, a0: float) -> sp.csr_matrix:
         """Factorise for ``a0`` unless that is the factorisation held; returns ``A_uu``."""
@@ -57,7 +59,21 @@ class FactorCache:
             self.timings["factorization"] += time.perf_counter() - t1
             self.A_uu = A_uu
             self.a0 = a0
+            self.factorizations += 1
         return self.A_uu
+
+    def factorize_system(self, a0: float, system: tuple) -> sp.csr_matrix:
+        """Factorise ``system`` (what ``assemble`` returns, e.g. a Newton Jacobian instead of
+        the BDF2-Stokes matrix) and hold it for ``a0``: a chord iteration that stalls on the
+        linear operator continues on it, and later steps with the same ``a0`` reuse it.
+        Returns ``A_uu``."""
+        t0 = time.perf_counter()
+        A_uu, J, nu, blocks = system
+        self.solver.factorize(J, nu, **blocks)
+        self.timings["factorization"] += time.perf_counter() - t0
+        self.refreshes += 1
+        self.A_uu, self.a0 = A_uu, a0
+        return A_uu
 
     def clear(self) -> None:
         """Forget the factorisation: the next :meth:`operator` call factorises anew."""

@@ -5,19 +5,23 @@ A velocity interpolated from another mesh is not divergence-free on the new one
 step: the pressure takes an impulse of the size ``divergence / dt``, which shows
 as a spike in the forces on the particles and a jump in their velocities, larger
 the smaller the step. :func:`divergence_free_projection` removes it beforehand:
-the ``M``-orthogonal projection onto ``{v : B v = 0}`` with the boundary values
-kept,
+the projection onto ``{v : B v = 0}`` with the boundary values kept that is
+orthogonal in the norm of ``D = diag(M)``,
 
-    min ||v - u||_M   subject to   B v = 0,   v = u on the Dirichlet DOFs,
+    min (v - u)^T D (v - u)   subject to   B v = 0,   v = u on the Dirichlet DOFs,
 
-one saddle-point solve ``[[M, B^T], [B, 0]] [v - u; q] = [0; -B u]`` on the free
-DOFs. It changes ``u`` by the size of its divergence (for an interpolated field:
-of the interpolation error) and leaves a divergence-free ``u`` unchanged.
+that is ``v = u - D^-1 B^T q`` with ``(B D^-1 B^T) q = B u`` on the free DOFs: one
+sparse solve of the size of the pressure space (the ``M``-orthogonal projection
+needs a saddle-point factorisation of the whole system, 0.11 s against a few ms
+on the collapse's 10k-DOF mesh). It changes ``u`` by the size of its divergence
+(for an interpolated field: of the interpolation error) and leaves a
+divergence-free ``u`` unchanged.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 
@@ -46,8 +50,14 @@ def divergence_free_projection(op, u: np.ndarray) -> np.ndarray:
     u = np.asarray(u, dtype=float)
     if u.shape != (sp_.nu,) or not np.all(np.isfinite(u)):
         raise ValueError(f"u: must be {sp_.nu} finite velocity DOFs, got shape {u.shape}")
-    J = op.reduced(op.matrix(sp_.M))
-    r = np.concatenate([np.zeros(sp_.nu), sp_.B @ u])[op.free]
-    x = np.concatenate([u, np.zeros(sp_.np_)])
-    x[op.free] -= spla.splu(J.tocsc()).solve(r)
-    return x[: sp_.nu]
+    nu = sp_.nu
+    free_u = op.free[op.free < nu]
+    free_p = op.free[op.free >= nu] - nu
+    B = sp.csr_matrix(sp_.B)
+    Bf = B[free_p][:, free_u]
+    D = sp_.M.diagonal()[free_u]
+    S = (Bf @ sp.diags(1.0 / D) @ Bf.T).tocsc()
+    q = spla.splu(S).solve((B @ u)[free_p])
+    v = u.copy()
+    v[free_u] -= (Bf.T @ q) / D
+    return v

@@ -18,7 +18,8 @@ lists the bundled scenes)::
     [domain]    box = [x0, y0, x1, y1], wall_thickness
     [fluid]     density, viscosity                  (omit for a dry scene)
     [[particles]] sides, radius, center, angle | vertices; density, velocity,
-                angular_velocity, core_ratio
+                angular_velocity, core_ratio, motion = {velocity, omega} |
+                {trajectory = [[t...], [x...], [y...], [angle...]]} (imposed motion)
     [grid]      nx, ny, sides, radius, spacing, origin, density, core_ratio, jitter
     [contacts]  E, mu, gamma
     [mesh]      kind = "graded" | "uniform" | "group", delta_l, sigma, h
@@ -30,13 +31,22 @@ lists the bundled scenes)::
 """
 
 from .catalog import bundled, bundled_scenes, first_comment
-from .parse import GRID_KEYS, MAX_SIDES, PARTICLE_KEYS, SECTIONS, grid_particles, scene_kwargs
+from .parse import (
+    GRID_KEYS,
+    MAX_SIDES,
+    MOTION_KEYS,
+    PARTICLE_KEYS,
+    SECTIONS,
+    grid_particles,
+    scene_kwargs,
+)
 from .scene import Scene
 from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
 
 __all__ = [
     "GRID_KEYS",
     "MAX_SIDES",
+    "MOTION_KEYS",
     "PARTICLE_KEYS",
     "SECTIONS",
     "Effects",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..dem import ContactLaw, Polygon
+from ..dem import ContactLaw, Polygon, PrescribedMotion
 from ..fluid.properties import Fluid
 from ._checks import check_keys, num, vec
 from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
@@ -12,7 +12,8 @@ from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
 SECTIONS = {"domain", "fluid", "particles", "grid", "contacts", "mesh", "time", "effects",
             "coupling", "output", "gravity"}
 PARTICLE_KEYS = {"sides", "radius", "center", "angle", "vertices", "density", "velocity",
-                 "angular_velocity", "core_ratio"}
+                 "angular_velocity", "core_ratio", "motion"}
+MOTION_KEYS = {"velocity", "omega", "trajectory"}
 GRID_KEYS = {"nx", "ny", "sides", "radius", "spacing", "origin", "density", "core_ratio",
              "jitter", "seed"}
 #: largest ``sides`` of a regular polygon (the paper's outlines have 24)
@@ -67,6 +68,34 @@ def _polygon(where: str, d: dict) -> Polygon:
                          "(give lengths in metres)") from None
 
 
+def _motion(where: str, d) -> PrescribedMotion:
+    """``motion = {velocity = [U, V], omega = w}`` or ``{trajectory = [[t...], [x...],
+    [y...], [angle...]]}`` of a ``[[particles]]`` entry."""
+    where = f"{where}.motion"
+    if not isinstance(d, dict):
+        raise ValueError(f"{where} = {d!r}: must be a table, e.g. {{ velocity = [U, 0.0], "
+                         "omega = 0.0 } or { trajectory = [[t...], [x...], [y...], "
+                         "[angle...]] }")
+    check_keys(where, d, MOTION_KEYS)
+    if "trajectory" in d and ("velocity" in d or "omega" in d):
+        raise ValueError(f"{where}: give velocity/omega (constant motion) or trajectory, not "
+                         "both")
+    if "trajectory" in d:
+        if callable(d["trajectory"]):  # from_dict in Python: functions only as PrescribedMotion
+            raise ValueError(f"{where}.trajectory: must be a (4, n) array (rows t, x, y, angle)"
+                             "; pass a function as ParticleSpec(motion=PrescribedMotion(...))")
+        kw = {"trajectory": d["trajectory"]}
+    else:
+        kw = {"velocity": vec(where, "velocity", d.get("velocity", (0.0, 0.0))),
+              "omega": num(where, "omega", d.get("omega", 0.0))}
+    try:
+        return PrescribedMotion(**kw)
+    except ValueError as exc:
+        msg = str(exc)
+        raise ValueError(f"{where}{msg[len('motion'):]}" if msg.startswith("motion")
+                         else f"{where}: {msg}") from None
+
+
 def _particle(where: str, d: dict) -> ParticleSpec:
     if not isinstance(d, dict):
         raise ValueError(f"{where} = {d!r}: must be a table ([[particles]] entry)")
@@ -80,7 +109,8 @@ def _particle(where: str, d: dict) -> ParticleSpec:
                         velocity=vec(where, "velocity", d.get("velocity", (0.0, 0.0))),
                         angular_velocity=num(where, "angular_velocity",
                                               d.get("angular_velocity", 0.0)),
-                        core_ratio=num(where, "core_ratio", d.get("core_ratio", 1.0), lo=0, hi=1))
+                        core_ratio=num(where, "core_ratio", d.get("core_ratio", 1.0), lo=0, hi=1),
+                        motion=_motion(where, d["motion"]) if "motion" in d else None)
 
 
 def grid_particles(d: dict) -> list[ParticleSpec]:

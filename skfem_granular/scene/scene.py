@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dem import ContactLaw, Polygon, stable_time_step
+from ..dem import ContactLaw, Polygon, PrescribedMotion, stable_time_step
 from ..fluid.properties import Fluid
 from ._checks import num, vec
 from .catalog import bundled
@@ -119,6 +119,8 @@ class Scene:
             V = p.polygon.vertices
             if V[0].min() < d[0] or V[0].max() > d[2] or V[1].min() < d[1] or V[1].max() > d[3]:
                 raise ValueError(f"particles[{i}]: polygon sticks out of domain.box {list(d)}")
+            if p.motion is not None:
+                self._check_motion(i, p)
         if self.coupling not in ("monolithic", "partitioned"):
             raise ValueError(
                 f"coupling.scheme = {self.coupling!r}: must be 'monolithic' or 'partitioned'"
@@ -142,6 +144,30 @@ class Scene:
         self._check_dem_dt()
         if self.fluid is None and self.effects.fluid:
             object.__setattr__(self, "effects", replace(self.effects, fluid=False))
+
+    def _check_motion(self, i: int, p: ParticleSpec) -> None:
+        """A prescribed motion fits its particle and the run (one-line errors)."""
+        where = f"particles[{i}]"
+        m = p.motion
+        if not isinstance(m, PrescribedMotion):
+            raise ValueError(f"{where}.motion = {m!r}: must be a PrescribedMotion or None")
+        if m.kind == "constant" and (tuple(p.velocity) != (0.0, 0.0) or p.angular_velocity):
+            if (tuple(p.velocity), p.angular_velocity) != (m.velocity, m.omega):
+                raise ValueError(f"{where}.velocity = {list(p.velocity)}, angular_velocity = "
+                                 f"{p.angular_velocity:g}: a particle with a constant motion "
+                                 "moves at motion.velocity, motion.omega (leave them out)")
+        poly = p.polygon
+        radius = float(np.hypot(*(poly.vertices - poly.centroid[:, None])).max())
+        m.check_start(where, (*poly.centroid, 0.0), radius)
+        t0, t1 = m.span
+        if t1 < self.time.t_end * (1.0 - 1e-12):
+            raise ValueError(f"{where}.motion.trajectory: the table ends at t = {t1:g} s: must "
+                             f"cover the run, up to time.t_end = {self.time.t_end:g} s")
+        every = self.checkpoint_every
+        if m.kind == "function" and isinstance(every, int) and every > 0:
+            raise ValueError(f"{where}.motion.trajectory: a Python function cannot go into a "
+                             f"checkpoint (output.checkpoint_every = {self.checkpoint_every}): "
+                             "give a (4, n) table, or checkpoint_every = 0")
 
     def _check_dem_dt(self) -> None:
         """``time.dem_dt`` must not exceed the DEM's stable step (named here, not as 'dt')."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-from ..dem import Particle, Polygon
+from ..dem import Particle, Polygon, PrescribedMotion
 from ._checks import num
 
 
@@ -125,13 +125,32 @@ class TimeSpec:
 
 @dataclass(frozen=True)
 class ParticleSpec:
-    """One particle: a convex polygon (shadow), its density, initial state and core."""
+    """One particle: a convex polygon (shadow), its density, initial state and core.
+
+    Attributes
+    ----------
+    polygon : Polygon
+    density : float
+    velocity : (2,) tuple
+        Initial velocity (m/s).
+    angular_velocity : float
+        Initial angular velocity (rad/s).
+    core_ratio : float
+        The fluid's outline (core) is the polygon scaled by this about its centroid.
+    motion : PrescribedMotion or None
+        An imposed rigid motion (TOML ``motion = {velocity = [U, V], omega = w}`` or
+        ``motion = {trajectory = [[t...], [x...], [y...], [angle...]]}``; in Python also
+        a function ``t -> (x, y, angle)``): the particle moves along it whatever the
+        forces, the fluid sees its velocity as boundary data and the history reports
+        the fluid force on it (:mod:`skfem_granular.dem.motion`). ``None``: free.
+    """
 
     polygon: Polygon
     density: float
     velocity: tuple = (0.0, 0.0)
     angular_velocity: float = 0.0
     core_ratio: float = 1.0
+    motion: PrescribedMotion | None = None
 
     def to_dem(self) -> Particle:
         """The DEM particle."""
@@ -141,4 +160,5 @@ class ParticleSpec:
             velocity=self.velocity,
             angular_velocity=self.angular_velocity,
             core_ratio=self.core_ratio,
+            motion=self.motion,
         )

@@ -40,7 +40,7 @@ import skfem
 import meshing
 
 from ..coupled.state import CoupledState
-from ..dem import ContactLaw, Polygon
+from ..dem import ContactLaw, Polygon, PrescribedMotion
 from ..fluid.properties import Fluid
 from ..io import History, plain
 from ..scene import Effects, MeshSpec, ParticleSpec, Scene, TimeSpec
@@ -99,7 +99,8 @@ def _mesh(d):
 #: as their fields, so a field added to one of them (CoupledState, say) is stored and read
 #: back with no change here.
 REGISTRY_DATACLASSES = (CoupledState, meshing.BodyFittedMesh, meshing.Recipe, Scene,
-                        ParticleSpec, MeshSpec, TimeSpec, Effects, Fluid, ContactLaw)
+                        ParticleSpec, PrescribedMotion, MeshSpec, TimeSpec, Effects, Fluid,
+                        ContactLaw)
 REGISTRY_CUSTOM = (
     plain.Custom(Polygon, ("vertices",), lambda p: {"vertices": p.vertices}, _polygon,
                  name="skfem_granular.dem.Polygon"),

@@ -13,7 +13,8 @@ def contacts_needed(scene, dem) -> bool:
     Compares the smallest gap between bounding circles (particles) and
     between a bounding circle and the domain box (walls) with the distance a
     particle can travel: ``|v0| t + |g| t^2 / 2`` plus a 10 % safety margin
-    of the bounding radius.
+    of the bounding radius (a particle with a prescribed motion: the farthest its
+    motion takes a point of it within the run, plus the margin).
     """
     T = scene.time.t_end
     pos = dem.positions
@@ -22,6 +23,9 @@ def contacts_needed(scene, dem) -> bool:
     speed = np.hypot(*dem.velocities) + np.abs(dem.angular_velocities) * R
     g = np.hypot(*scene.gravity) if scene.effects.gravity else 0.0
     travel = speed * T + 0.5 * g * T**2 + 0.1 * R
+    p = dem.particles
+    for k in np.flatnonzero(dem.imposed):  # a prescribed motion goes where it says
+        travel[k] = p.motions[k].reach(T, p.start[:, k], R[k]) + 0.1 * R[k]
     x0, y0, x1, y1 = scene.domain
     gap_wall = np.min([pos[0] - x0, x1 - pos[0], pos[1] - y0, y1 - pos[1]], axis=0) - R
     if np.any(gap_wall <= travel):

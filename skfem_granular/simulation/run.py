@@ -460,6 +460,7 @@ class Simulation:
             "coupling": None if sc.dry else sc.coupling,
             "mesh_motion": None if sc.dry else ("ale" if sc.moving_mesh else "fixed"),
             "particles": self.dem.n,
+            "imposed_motion": [int(k) for k in np.flatnonzero(self.dem.imposed)],
             "steps": len(hist),
             "t_end": float(hist.t[-1]) if len(hist) else 0.0,
             "dt": sc.time.dt,
