@@ -20,12 +20,18 @@ the paper's explicit scheme:
 particle velocities from the DEM are Dirichlet data of a fluid solve whose
 force then drives the DEM step.
 
-Between remeshes the mesh stays fixed: particle outline nodes keep the
-positions they had when the mesh was built and the rigid velocities are
-taken about that reference centre (the nodes are the particle's material
-points shifted back by the displacement since the last remesh). The
-stepper remeshes before that lag grows past a fraction of the element
-size (:mod:`skfem_granular.coupled.transfer`).
+On a moving mesh (ALE, :meth:`MonolithicCoupling.move`; the default) the
+outline nodes are where the particles are at the end of the step, inside the
+iteration (``step(geometry=...)``). On a fixed mesh the outline nodes keep the
+positions they had when the mesh was built and the rigid velocities are taken
+about that reference centre (the nodes are the particle's material points
+shifted back by the displacement since the last remesh); the stepper remeshes
+before that lag grows past a fraction of the element size
+(:mod:`skfem_granular.coupled.transfer`).
+
+The corrector is a chord iteration on the factorised BDF2-Stokes matrix; when it
+contracts by less than :data:`REFRESH_RATE` per iteration it continues on the
+coupled Newton Jacobian factorised at the iterate.
 """
 
 from __future__ import annotations
