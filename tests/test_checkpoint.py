@@ -296,3 +296,34 @@ def test_moving_mesh_checkpoint_at_any_step_resumes_bit_for_bit(tmp_path):
     res = Simulation.resume(tmp_path / "part").run(progress=False).history
     for c in ("vy", "angle", "omega", "Fy", "torque"):
         assert np.array_equal(getattr(ref, c), getattr(res, c)), c
+
+
+def test_checkpoint_holding_a_newton_jacobian_resumes_bit_for_bit(tmp_path, monkeypatch):
+    """The corrector refreshes to a Newton Jacobian when the chord stalls (forced here: at
+    least three iterations, a refresh after the second); a checkpoint taken while one is held
+    records the state it was formed at, and the resumed run rebuilds the same one."""
+    from contextlib import closing
+
+    import skfem_granular.coupled.monolithic as monolithic
+    from skfem_granular.simulation import checkpoint
+
+    converged = monolithic.chord_converged
+    monkeypatch.setattr(monolithic, "REFRESH_RATE", 0.0)
+    monkeypatch.setattr(monolithic, "chord_converged",
+                        lambda dn, prev, it, tol: it >= 3 and converged(dn, prev, it, tol))
+    base = Scene.from_toml(SCENES / "single_particle.toml")
+    sc = replace(base, time=replace(base.time, t_end=3e-4), mesh_motion="ale")
+    run = Simulation(sc, output_dir=tmp_path / "ref").run(progress=False)
+    assert run.summary["jacobian_refreshes"] > 0
+    sim = Simulation(sc, output_dir=tmp_path / "part")
+    with closing(sim.evolve()) as steps:
+        for k, _ in enumerate(steps, start=1):
+            if k == 13:
+                assert sim.stepper.coupling.factorized_on[2] is not None  # a Jacobian held
+                checkpoint.save(sim, k, None)
+                break
+    res = Simulation.resume(tmp_path / "part").run(progress=False)
+    for c in ("vy", "angle", "omega", "Fy", "torque"):
+        assert np.array_equal(getattr(run.history, c), getattr(res.history, c)), c
+    assert res.summary["jacobian_refreshes"] == run.summary["jacobian_refreshes"]
+    assert res.summary["factorizations"] == run.summary["factorizations"]

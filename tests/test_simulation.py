@@ -321,3 +321,14 @@ def test_generator_loop_broken_off_keeps_what_it_did(paper, tmp_path):
     assert len(sim.result.history) == 3
     h = np.genfromtxt(tmp_path / "history.csv", delimiter=",", names=True)
     assert h.shape == (3,) and json.loads((tmp_path / "summary.json").read_text())["steps"] == 3
+
+
+def test_summary_counts_factorisations_by_kind():
+    """A constant-step run factorises the BDF2-Stokes operator twice (the backward-Euler
+    start, then BDF2) and never needs a Newton Jacobian on the paper's particle."""
+    sc = replace(Scene.bundled("single_particle"), output_dir=None)
+    sc = replace(sc, time=replace(sc.time, t_end=2e-4))
+    s = Simulation(sc).run(progress=False).summary
+    assert (s["factorizations"], s["jacobian_refreshes"]) == (2, 0)
+    assert s["remesh_reasons"] == {"travel": 0, "angle": 0, "area": 0, "ahead": 0}
+    assert s["mesh"]["kind"] == "graded"

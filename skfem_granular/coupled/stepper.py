@@ -158,6 +158,7 @@ class CoupledStepper:
         self.radius = np.array(
             [np.linalg.norm(c - c.mean(axis=1, keepdims=True), axis=0).max() for c in cores])
         self.remeshes = self.retries = self.rejections = self.euler_steps = 0
+        self._factor_counts = {"factorizations": 0, "jacobian_refreshes": 0}
         self.remesh_energy_ratios = []
         #: moving mesh: why it was remeshed, ``{reason: count}`` (:meth:`_ale_remesh_reason`)
         self.remesh_reasons = dict.fromkeys(REMESH_REASONS, 0)
@@ -179,15 +180,28 @@ class CoupledStepper:
         return self.coupling.space
 
     @property
+    def factor_counts(self) -> dict:
+        """Factorisations of the run so far: ``factorizations`` of the BDF2-Stokes operator
+        (a new step size or step kind, a new mesh) and ``jacobian_refreshes`` (a Newton
+        Jacobian where the chord iteration stalled), over every mesh."""
+        f = getattr(getattr(self, "coupling", None), "factors", None)
+        c = dict(self._factor_counts)
+        if f is not None:
+            c["factorizations"] += f.factorizations
+            c["jacobian_refreshes"] += f.refreshes
+        return c
+
+    @property
     def ale(self) -> bool:
         """Whether the mesh moves with the particles (:attr:`Scene.moving_mesh`)."""
         return self.scene.moving_mesh
 
     def _set_mesh(self, mesh, centers=None, angles=None):
         old = getattr(self, "coupling", None)
-        if old is not None:  # keep the phase times of the coupling being replaced
+        if old is not None:  # keep the phase times and counts of the coupling being replaced
             for k, v in old.timings.items():
                 self.timings[k] = self.timings.get(k, 0.0) + v
+            self._factor_counts = self.factor_counts
         t0 = time.perf_counter()
         self.meshed = mesh
         dem = self.dem
@@ -563,6 +577,7 @@ class CoupledStepper:
                 "mesh_angles": self.mesh_angles, "coupling_centers": self.coupling.centers.copy(),
                 "counters": {"remeshes": self.remeshes, "retries": self.retries,
                              "rejections": self.rejections, "euler_steps": self.euler_steps,
+                             **self.factor_counts,
                              **{"remesh_reasons." + k: v
                                 for k, v in self.remesh_reasons.items()}}}
         self.dem.neighbours.invalidate()
@@ -605,4 +620,7 @@ class CoupledStepper:
         st.rejections, st.euler_steps = c["rejections"], c["euler_steps"]
         st.remesh_reasons = {k.split(".", 1)[1]: v for k, v in c.items()
                              if k.startswith("remesh_reasons.")}
+        # the counts so far, less what the rebuilt coupling has already done
+        done = st.factor_counts
+        st._factor_counts = {k: c[k] - done[k] + st._factor_counts[k] for k in done}
         return st

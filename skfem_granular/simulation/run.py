@@ -466,6 +466,7 @@ class Simulation:
             "dt": sc.time.dt,
             "remeshes": self.remeshes,
             "remesh_reasons": None if sc.dry else dict(self.stepper.remesh_reasons),
+            **({} if sc.dry else self.stepper.factor_counts),
             "retries": self.retries,
             "rejections": self.rejections,
             "euler_steps_at_contacts": self.euler_steps,
