@@ -8,7 +8,6 @@ from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from .geometry import edge_distance, outline_lengths, project_to_edge
 from .pslg import Layout, Triangulation, triangulate
@@ -43,7 +42,11 @@ class Sizing:
         self.dl = np.atleast_1d(np.asarray(dl, dtype=np.float64))
         self.slope = np.atleast_1d(np.asarray(slope, dtype=np.float64))
         self.offset = self.dl - self.slope * np.atleast_1d(np.asarray(r0, dtype=np.float64))
-        self._tree = cKDTree(self.centers) if self.dl.size > 8 else None
+        self._tree = None
+        if self.dl.size > 8:
+            from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
+
+            self._tree = cKDTree(self.centers)
 
     def per_source(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Sizes of every source at ``x``, shape ``(k, M)``."""
@@ -68,7 +71,11 @@ def near_particles(particles: Sequence[NDArray[np.float64]], x: NDArray[np.float
     if not particles or x.shape[1] == 0:
         return bad
     few = len(particles) <= 8
-    tree = None if few else cKDTree(x.T)
+    tree = None
+    if not few:
+        from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
+
+        tree = cKDTree(x.T)
     gmax = float(gap.max())
     for P in particles:
         c = P.mean(axis=1)

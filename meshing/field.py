@@ -38,7 +38,6 @@ import numpy as np
 import skfem
 import triangle
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from .cleanup import merge_degenerate
 from .geometry import centroid, edge_distance, inside, outline_lengths, project_to_edge
@@ -118,6 +117,8 @@ class SizeField:
             E[i, :P.shape[1]] = (np.roll(P, -1, axis=1) - P).T
         self._A, self._E = A, E
         self._L2 = np.maximum(np.sum(E * E, axis=2), 1e-300)
+        from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
+
         self._tree = cKDTree(self.centers)
         self.k = min(NEAREST, n)
 
@@ -291,6 +292,8 @@ def _merge_close(X: NDArray[np.float64], spacing: NDArray[np.float64]
     """Replace nodes closer than half their spacing by their mean (in index order)."""
     if X.shape[1] < 2:
         return X, spacing
+    from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
+
     pairs = cKDTree(X.T).query_pairs(0.5 * float(spacing.max()), output_type="ndarray")
     if pairs.size == 0:
         return X, spacing

@@ -202,8 +202,6 @@ MIN_RELATIVE_SIZE = 1e-5
 
 def check_layout(D: NDArray[np.float64], particles: Sequence[NDArray[np.float64]]) -> None:
     """Raise ValueError if a particle leaves the domain or two particles overlap."""
-    from scipy.spatial import cKDTree
-
     size = float(np.max(np.ptp(D, axis=1)))
     for i, P in enumerate(particles):
         out = np.flatnonzero(~inside(D, P))
@@ -217,6 +215,8 @@ def check_layout(D: NDArray[np.float64], particles: Sequence[NDArray[np.float64]
                              "particle cannot be meshed (round-off); must be larger")
     if len(particles) < 2:
         return
+    from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
+
     C = np.array([centroid(P) for P in particles])
     R = np.array([np.max(np.hypot(*(P - c[:, None]))) for P, c in zip(particles, C,
                                                                      strict=True)])

@@ -19,6 +19,7 @@ Bad input ends with exit code 2 and one line naming the field and the allowed ra
 from __future__ import annotations
 
 import argparse
+import gc
 import sys
 from dataclasses import replace
 
@@ -126,7 +127,25 @@ def _check_out(field: str, out) -> None:
 
 
 def main(argv=None) -> int:
-    """Entry point; returns the exit code."""
+    """Entry point; returns the exit code.
+
+    Called with ``argv=None`` (the ``skfem-granular`` command, the whole process), the
+    objects that exist are moved out of the garbage collector's reach
+    (:func:`gc.freeze`) at the start (the imported modules, which live to the end
+    anyway: the collections during the run then skip them, ~0.05 s less) and again
+    at the end (the interpreter's last collection at exit would otherwise walk
+    everything, ~0.4 s once numba's compiler has been set up; every output file is
+    closed by then).
+    """
+    if argv is None:
+        gc.freeze()
+    code = _main(argv)
+    if argv is None:
+        gc.freeze()
+    return code
+
+
+def _main(argv) -> int:
     try:
         args = _parser().parse_args(argv)
     except _UsageError as exc:

@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _run(cmd, cwd, timeout=1800):
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "VIRTUAL_ENV", "NUMBA_CACHE_DIR")}
     p = subprocess.run([str(c) for c in cmd], cwd=cwd, env=env, capture_output=True, text=True,
                        timeout=timeout)
     assert p.returncode == 0, f"{cmd}: exit {p.returncode}\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}"
@@ -53,6 +54,8 @@ def test_wheel_installs_and_runs_outside_the_checkout(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "completed" and s["steps"] == 100
     assert (out / "history.csv").read_text().count("\n") == 101
+    # numba's disk cache of the kernels the run compiled, next to the installed sources
+    assert list(Path(where[0]).parent.rglob("__pycache__/*.nbi")), "no numba cache written"
     _run([exe, "run", "--resume", out, "--t-end", "1.1e-3", "--no-progress"], elsewhere)
     assert (out / "history.csv").read_text().count("\n") == 111
     study = tmp_path / "faxen"

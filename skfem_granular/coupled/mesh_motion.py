@@ -16,10 +16,11 @@ angle, smallest signed-area ratio to the built mesh), for the remeshing rule of
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+
+from .._jit import lazy_njit
 
 
 def rigid_positions(points: np.ndarray, pose_ref: np.ndarray, pose: np.ndarray) -> np.ndarray:
@@ -102,7 +103,7 @@ def mesh_quality(p: np.ndarray, t: np.ndarray, area_ref: np.ndarray) -> tuple[fl
     return float(np.degrees(angle)), float(ratio)
 
 
-@numba.njit(cache=True)
+@lazy_njit  # numba.njit(cache=True) at the first call
 def _quality(p, t, area_ref):  # pragma: no cover (compiled)
     """Smallest angle (radians) and smallest signed-area ratio, in one pass."""
     smallest, ratio = np.pi, np.inf

@@ -10,11 +10,11 @@ separated along the joining line are rejected first. Pairs run serially: a
 ``AVAILABLE`` is False when numba is not installed; callers then use the
 numpy version.
 
-numba is imported and the kernels are compiled (``cache=True``: loaded from
-numba's cache after the first process) at the first call with at least one
-pair, not at import: importing numba takes ~0.2 s and its first compiled call
-~0.3 s more, which a scene without candidate pairs (one particle far from the
-walls) never needs.
+numba is imported and the kernels are compiled (:func:`~skfem_granular._jit.lazy_njit`,
+``cache=True``: loaded from numba's cache after the first process) at the first
+call with at least one pair, not at import: importing numba takes ~0.2 s and
+its first compiled call ~0.3 s more, which a scene without candidate pairs
+(one particle far from the walls) never needs.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from .._jit import lazy_njit
 from .overlap import EPS, EPS_PARALLEL, TAU, OverlapGeometry
 
 AVAILABLE = importlib.util.find_spec("numba") is not None
@@ -31,6 +32,7 @@ AVAILABLE = importlib.util.find_spec("numba") is not None
 __all__ = ["AVAILABLE", "overlap_pairs_numba"]
 
 
+@lazy_njit
 def _clip(S, ns, eS, lS, NS, eC, lC, nc, scale, drop_shared, acc, pts, npts):
     """Clip the edges of S (shifted vertices) against C; accumulate (2A, Mx, My).
 
@@ -95,6 +97,7 @@ def _clip(S, ns, eS, lS, NS, eC, lC, nc, scale, drop_shared, acc, pts, npts):
     return npts
 
 
+@lazy_njit
 def _edges(S, n, e, el):
     for k in range(n):
         k1 = (k + 1) % n
@@ -103,6 +106,7 @@ def _edges(S, n, e, el):
         el[k] = math.sqrt(e[k, 0] ** 2 + e[k, 1] ** 2)
 
 
+@lazy_njit
 def _cross_table(S, ns, C, eC, nc, out):
     """out[k, m] = cross(eC[m], S[k] - C[m])."""
     for k in range(ns):
@@ -110,6 +114,7 @@ def _cross_table(S, ns, C, eC, nc, out):
             out[k, m] = eC[m, 0] * (S[k, 1] - C[m, 1]) - eC[m, 1] * (S[k, 0] - C[m, 0])
 
 
+@lazy_njit
 def _principal_axis(pts, npts, out, p):
     """Direction and extent of the points (written to out[p, 3:6])."""
     mx = 0.0
@@ -142,6 +147,7 @@ def _principal_axis(pts, npts, out, p):
     out[p, 5] = pmax - pmin
 
 
+@lazy_njit
 def _pair(A, na, B, nb, out, p, Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts):
     """Overlap geometry of one pair, written to ``out[p]``."""
     rx = 0.0
@@ -217,6 +223,7 @@ def _pair(A, na, B, nb, out, p, Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts):
         _principal_axis(pts, npts, out, p)
 
 
+@lazy_njit
 def _kernel(V, count, I, J, out):
     """out[p] = (area, cx, cy, ux, uy, length, ncross) for every pair p."""
     nmax = V.shape[1]
@@ -233,25 +240,6 @@ def _kernel(V, count, I, J, out):
     for p in range(I.shape[0]):
         _pair(V[I[p]], count[I[p]], V[J[p]], count[J[p]], out, p,
               Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts)
-
-
-_COMPILED = []
-
-
-def _compile() -> None:
-    """Replace the kernels by their numba versions (once, before the first compiled call).
-
-    The kernels call each other through this module's globals, which numba reads
-    when it compiles (or loads from its cache) ``_kernel``.
-    """
-    if _COMPILED:
-        return
-    import numba
-
-    g = globals()
-    for name in ("_clip", "_edges", "_cross_table", "_principal_axis", "_pair", "_kernel"):
-        g[name] = numba.njit(cache=True)(g[name])
-    _COMPILED.append(True)
 
 
 def overlap_pairs_numba(V: np.ndarray, count: np.ndarray, I: np.ndarray, J: np.ndarray):
@@ -272,7 +260,6 @@ def overlap_pairs_numba(V: np.ndarray, count: np.ndarray, I: np.ndarray, J: np.n
     """
     out = np.empty((I.shape[0], 7))
     if I.shape[0]:
-        _compile()
         _kernel(np.ascontiguousarray(V), count, I, J, out)
     return OverlapGeometry(out[:, 0].copy(), out[:, 1:3].T.copy(), out[:, 3:5].T.copy(),
                            out[:, 5].copy(), out[:, 6].astype(np.int64))

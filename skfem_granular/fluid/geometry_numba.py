@@ -9,17 +9,18 @@ quadrature points, weighted basis values). The formulas are those of
 :mod:`~skfem_granular.fluid.geometry`; contributions are added in the element
 order of the scatter maps, as ``numpy.bincount`` would.
 
-Compiled with numba (``cache=True``: compiled once per installation and reused by
-later processes).
+Compiled with numba at the first call (:func:`~skfem_granular._jit.lazy_njit`,
+``cache=True``: compiled once per installation and reused by later processes).
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from .._jit import lazy_njit
 
-@numba.njit(cache=True)
+
+@lazy_njit  # numba.njit(cache=True) at the first call
 def moved_element_data(p, t, orientation, Mhat, S4, E, dref, phi, weights, uu_slot, pu_slot,
                        M, Ks, Kl, B, tab, wphi):  # pragma: no cover (compiled)
     """Accumulate the blocks of the triangles ``t`` at vertex positions ``p``.

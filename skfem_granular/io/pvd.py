@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -63,6 +62,8 @@ class PVDSeries:
         return self.path.parent / name
 
     def _write_index(self) -> None:
+        from xml.sax.saxutils import quoteattr  # here: it imports urllib.request (~0.02 s)
+
         lines = ['<?xml version="1.0"?>',
                  '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
                  "  <Collection>"]
