@@ -8,7 +8,8 @@ of a new mesh. New nodes in the region a particle has vacated lie just
 outside the old mesh: they are snapped onto the nearest old element, whose
 boundary values are the particle's rigid velocity there. Both BDF2 histories
 ``u_n`` and ``u_{n-1}`` must be transferred, or the scheme silently drops to
-first order.
+first order; :func:`transfer_histories` moves all of a coupled state's, on a
+moving mesh each from its own configuration and projected divergence-free.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..fluid.points import PointLocator, evaluation_matrix
+from ..fluid.projection import divergence_free_projection
 
 
 def lag(centers_ref: np.ndarray, angles_ref: np.ndarray, centers: np.ndarray,
@@ -58,3 +60,39 @@ class FieldTransfer:
     def pressure(self, p: np.ndarray) -> np.ndarray:
         """Pressure DOFs on the new mesh."""
         return self._Ep @ p
+
+
+def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project=None) -> None:
+    """Move the fluid histories of a :class:`~skfem_granular.coupled.state.CoupledState`
+    from ``old`` onto ``new`` (in place): ``u_n``, ``du_n``, ``p_n`` and ``x`` at ``t_n``,
+    ``u_{n-1}`` and ``du_{n-1}`` at ``t_{n-1}``.
+
+    Parameters
+    ----------
+    state : CoupledState
+        The state to update.
+    old, new : TaylorHood
+        The discretisations at ``t_n``.
+    old_prev, new_prev : TaylorHood, optional
+        Moving mesh: both meshes in their ``t_{n-1}`` configuration (the nodal values of
+        ``u_{n-1}`` belong to where the nodes were then); default: the ``t_n`` ones.
+    project : NavierStokesOperator, optional
+        The new mesh's operator: project both histories onto its discretely
+        divergence-free velocities, each in its own configuration
+        (:func:`~skfem_granular.fluid.projection.divergence_free_projection`), so that the
+        next step does not remove an interpolation's divergence with a pressure impulse.
+    """
+    s = state
+    tr = FieldTransfer(old, new)
+    s.u_n = tr.velocity(s.u_n)
+    s.du_n = None if s.du_n is None else tr.velocity(s.du_n)
+    s.p_n = tr.pressure(s.p_n)
+    tr_prev = tr if old_prev is None else FieldTransfer(old_prev, new_prev)
+    s.u_prev = None if s.u_prev is None else tr_prev.velocity(s.u_prev)
+    s.du_prev = None if s.du_prev is None else tr_prev.velocity(s.du_prev)
+    if project is not None:
+        s.u_n = divergence_free_projection(project, s.u_n)
+        if s.u_prev is not None:
+            op_prev = project if old_prev is None else project.moved(new_prev)
+            s.u_prev = divergence_free_projection(op_prev, s.u_prev)
+    s.x = np.concatenate([s.u_n, s.p_n])
