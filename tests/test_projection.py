@@ -50,3 +50,27 @@ def test_projection_is_the_nearest_divergence_free_field():
     # the residual u - v is diag(M)-orthogonal to divergence-free interior fields
     assert abs((u - v) @ (space.M.diagonal() * (other - v))) <= 1e-9 * _D_norm(space, u - v) \
         * _D_norm(space, other - v)
+
+
+def test_ale_jacobian_is_the_derivative_of_the_ale_residual():
+    # the Newton matrix the coupled corrector factorises when its chord stalls: R is
+    # quadratic in u, so R(x + dx) - R(x) - J(x) dx = [rho N(du) du; 0] exactly (0 for Stokes)
+    space, _, u = _setup()
+    rho = 1000.0
+    for convection in (True, False):
+        bc = {"inner": (0.0, 1e-2), "outer": (0.0, 0.0)}
+        op = NavierStokesOperator(space, sg.Fluid(rho, 1e-3), DirichletData(space, bc),
+                                  convection=convection)
+        rng = np.random.default_rng(2)
+        w = 1e-2 * rng.standard_normal(space.nu)
+        x = np.concatenate([u, rng.standard_normal(space.np_)])
+        dx = 1e-3 * rng.standard_normal(space.N)
+        J = op.jacobian(x, c_mass=1e4, w_mesh=w)
+        diff = op.residual(x + dx, c_mass=1e4, w_mesh=w) - op.residual(x, c_mass=1e4, w_mesh=w)
+        left = diff - J @ dx
+        expected = np.zeros(space.N)
+        if convection:
+            du = dx[: space.nu]
+            expected[: space.nu] = rho * space.convection.apply(du, du)
+            assert np.abs(expected).max() > 1e-6 * np.abs(diff).max()  # a visible term
+        assert np.abs(left - expected).max() <= 1e-9 * np.abs(diff).max()

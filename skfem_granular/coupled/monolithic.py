@@ -237,17 +237,7 @@ class MonolithicCoupling(RigidParticles):
                               None if x is None else np.array(x, dtype=float),
                               None if x is None or w is None else np.array(w, dtype=float))
         A_uu = self.op.velocity_block(a0)
-        A = A_uu
-        if x is not None and (self.op.convection or w is not None):
-            kern, rho = self.space.convection, self.fluid.density
-            N = None
-            if self.op.convection:
-                N = kern.jacobian(x[: self.space.nu], newton=True)
-            if w is not None:
-                Nw = kern.jacobian(w, newton=False)
-                N = -Nw if N is None else N - Nw
-            A = A_uu + rho * N
-        J = self.op.matrix(A)
+        J = self.op.matrix(A_uu) if x is None else self.op.jacobian(x, a0, w_mesh=w)
         Jz = (self.ET @ J @ self.E).tocsr()
         diag = np.zeros(self.nz)
         diag[self.rigid_slice] = a0 * self._inertia_diag()
@@ -262,7 +252,10 @@ class MonolithicCoupling(RigidParticles):
         the mesh in use (with its mesh velocity) and hold it as the chord operator for
         ``a0`` (:meth:`FactorCache.factorize_system`); :attr:`factorized_on` records
         where, so that a checkpoint can rebuild it."""
-        self.factors.factorize_system(a0, self._coupled_system(a0, x))
+        t0 = time.perf_counter()
+        system = self._coupled_system(a0, x)
+        self.timings["assembly"] += time.perf_counter() - t0
+        self.factors.factorize_system(a0, system)
 
     def residual(self, z, x_D, rhs_u, rigid_rhs, A_uu=None):
         """Coupled residual and the fluid residual behind it (``A_uu``: the velocity block

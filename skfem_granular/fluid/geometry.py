@@ -4,8 +4,10 @@ On a mesh whose vertices move (ALE) the connectivity, the DOF numbering and
 the sparsity patterns stay; only the affine maps of the triangles change.
 :class:`ReferenceBlocks` keeps the reference-element integrals of the P2/P1
 basis functions and the scatter maps into the fixed patterns, and builds
-``M``, ``K`` (both viscous forms) and ``B`` for new vertex positions with a few
-vectorised products: on a triangle with map ``x = A xhat + b``,
+``M``, ``K`` (both viscous forms), ``B`` and the convection kernel's tables for
+new vertex positions in one compiled pass over the triangles
+(:mod:`~skfem_granular.fluid.geometry_numba`): on a triangle with map
+``x = A xhat + b``,
 
 - ``M_e = |det A| Mhat`` (``Mhat_ij = int phi_i phi_j``),
 - ``int d_c phi_i d_d phi_j = |det A| sum_kl Ainv[k, c] Ainv[l, d] S^kl_ij``
@@ -101,21 +103,6 @@ class ReferenceBlocks:
                            np.broadcast_to(vdofs[:, None, :], (nel, 12, 12)), (nu, nu))
         self.pu = _Pattern(np.broadcast_to(pdofs[:, :, None], (nel, 3, 12)),
                            np.broadcast_to(vdofs[:, None, :], (nel, 3, 12)), (np_, nu))
-
-    def blocks(self, p: np.ndarray, names=("M", "K_symmetric", "K_laplace", "B"),
-               maps=None) -> dict:
-        """The blocks ``names`` (of ``M``, ``K_symmetric``, ``K_laplace``, ``B``) for vertex
-        positions ``p`` ``(2, nv)``; ``maps``: ``(Ainv, |det A|)`` if already known (the
-        inversion check is then the caller's).
-
-        Raises
-        ------
-        ValueError
-            When a triangle is inverted or degenerate at ``p`` (never assemble on a
-            negative Jacobian).
-        """
-        data = self.moved(p, check=maps is None, parts=names)
-        return {name: data[name] for name in names}
 
     def moved(self, p: np.ndarray, check: bool = True,
               parts=("M", "K_symmetric", "K_laplace", "B", "convection")) -> dict:

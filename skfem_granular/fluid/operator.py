@@ -198,12 +198,17 @@ class NavierStokesOperator:
         return sp.csr_matrix((data[keep], indices[keep], kept[indptr].astype(indptr.dtype)),
                              shape=N.shape)
 
-    def jacobian(self, x: np.ndarray, c_mass: float = 0.0, newton: bool = True) -> sp.csr_matrix:
-        """Full Jacobian of :meth:`residual` at ``x`` (Picard matrix if ``newton=False``)."""
+    def jacobian(self, x: np.ndarray, c_mass: float = 0.0, newton: bool = True,
+                 w_mesh: np.ndarray | None = None) -> sp.csr_matrix:
+        """Full Jacobian of :meth:`residual` at ``x`` (Picard matrix if ``newton=False``);
+        with ``w_mesh`` that of the ALE form (the wind ``u - w``: ``- rho N(w)`` added)."""
         A = self.velocity_block(c_mass)
-        if self.convection:
-            u = x[: self.space.nu]
-            N = self.space.convection.jacobian(u, newton=newton)
+        kern = self.space.convection
+        N = kern.jacobian(x[: self.space.nu], newton=newton) if self.convection else None
+        if w_mesh is not None:
+            Nw = kern.jacobian(w_mesh, newton=False)
+            N = -Nw if N is None else N - Nw
+        if N is not None:
             N.data *= self.fluid.density
             A = self._plus_convection(A, N)
         return self.matrix(A)

@@ -97,8 +97,7 @@ class TaylorHood:
         new = object.__new__(TaylorHood)
         d = new.__dict__
         d.update(mesh=dataclasses.replace(ref.mesh, doflocs=p), intorder=ref.intorder,
-                 nu=ref.nu, np_=ref.np_, N=ref.N, reference=ref, reference_blocks=rb,
-                 )
+                 nu=ref.nu, np_=ref.np_, N=ref.N, reference=ref, reference_blocks=rb)
         for topo in ("component", "all_boundary_dofs", "incidence", "p1_to_p2"):
             d[topo] = getattr(ref, topo)
         return new
