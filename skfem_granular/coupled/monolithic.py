@@ -131,6 +131,12 @@ class MonolithicCoupling(RigidParticles):
 
     def _assemble_prolongation(self):
         """``E`` (and ``E^T``) with the rotation's lever arms at the current node positions."""
+        if getattr(self, "_lever_slots", None) is not None:  # moved mesh: new lever values only
+            levers = np.concatenate([self.levers(k)[2] for k in self.free_particles]
+                                    or [np.zeros(0)])
+            self.E.data[self._lever_slots[0]] = levers
+            self.ET.data[self._lever_slots[1]] = levers
+            return
         u_free, p_free = self._u_free, self._p_free
         r = self.ndof_rigid
         rows = [u_free, p_free]
@@ -146,12 +152,6 @@ class MonolithicCoupling(RigidParticles):
                 rows += [d]
                 cols += [np.full(d.size, base + 2)]
                 vals += [lever]
-        if getattr(self, "_lever_slots", None) is not None:  # moved mesh: new lever values only
-            levers = np.concatenate([self.levers(k)[2] for k in self.free_particles]
-                                    or [np.zeros(0)])
-            self.E.data[self._lever_slots[0]] = levers
-            self.ET.data[self._lever_slots[1]] = levers
-            return
         self.E = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                                shape=(self.space.N, self.nz))
         self.ET = self.E.T.tocsr()

@@ -134,9 +134,9 @@ class ReferenceBlocks:
         """
         from .geometry_numba import moved_element_data
 
-        if check:
-            self.maps(p)
         p = np.ascontiguousarray(p, dtype=float)
+        if check:
+            self.check(p)
         uu, pu = self.uu, self.pu
         n = uu.indices.size
         M, Ks, Kl = (np.zeros(n if name in parts else 0)
@@ -156,6 +156,23 @@ class ReferenceBlocks:
         if "B" in parts:
             out["B"] = pu.csr(B)
         return out
+
+    def check(self, p: np.ndarray) -> None:
+        """Raise when a triangle is inverted (orientation changed) or degenerate at ``p``
+        (one compiled pass; :meth:`maps` gives the maps themselves).
+
+        Raises
+        ------
+        ValueError
+            Naming the triangle and its signed area.
+        """
+        from .geometry_numba import smallest_signed_determinant
+
+        det, k = smallest_signed_determinant(np.ascontiguousarray(p, dtype=float), self.t,
+                                             self.orientation)
+        if not det > 0:
+            raise ValueError(f"mesh motion: triangle {k} is inverted or degenerate "
+                             f"(signed area {det / 2:.3g}); remesh before moving this far")
 
     def maps(self, p: np.ndarray):
         """``Ainv`` ``(nel, 2, 2)`` and ``|det A|`` ``(nel,)`` of the triangles at ``p``.

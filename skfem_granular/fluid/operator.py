@@ -89,8 +89,7 @@ class NavierStokesOperator:
         B = space.B  # on the reference pattern: transposes as gathers
         indices, indptr, order = space.reference_blocks.pu.transpose_map()
         new._Bt = sp.csr_matrix((B.data[order], indices, indptr), shape=(B.shape[1], B.shape[0]))
-        new._B_lower = sp.csr_matrix((B.data, B.indices, B.indptr),
-                                     shape=(B.shape[0], B.shape[0] + B.shape[1]))
+        new.__dict__.pop("_B_lower", None)  # built when a matrix is (from B's arrays)
         new.dirichlet = self.dirichlet.moved(space)
         Kv = space.K(self.viscous)  # same pattern object as the moved M: keep it shared
         new.K = sp.csr_matrix((self.fluid.viscosity * Kv.data, Kv.indices, Kv.indptr),
@@ -133,7 +132,11 @@ class NavierStokesOperator:
     @cached_property
     def _B_lower(self) -> sp.csr_matrix:
         """The lower block row ``[B, 0]`` of the saddle-point matrix."""
-        return sp.hstack([sp.csr_matrix(self.space.B), self._zero_p], format="csr")
+        B = self.space.B
+        if self.space.reference is not self.space:  # a moved mesh: B's arrays, wider
+            return sp.csr_matrix((B.data, B.indices, B.indptr),
+                                 shape=(B.shape[0], B.shape[0] + B.shape[1]))
+        return sp.hstack([sp.csr_matrix(B), self._zero_p], format="csr")
 
     def velocity_block(self, c_mass: float = 0.0) -> sp.csr_matrix:
         """Linear velocity block ``c rho M + eta K`` (cached per ``c_mass``; do not modify)."""

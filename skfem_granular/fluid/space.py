@@ -55,6 +55,7 @@ class TaylorHood:
         self.np_ = self.pb.N
         self.N = self.nu + self.np_
         self.reference = self  # the space whose connectivity and DOF numbering this one shares
+        self._viscous_forms = set()  # the viscous forms asked for (see K)
 
     def __getattr__(self, name):
         # a moved space (see moved()) builds its scikit-fem bases only when asked for them
@@ -93,7 +94,7 @@ class TaylorHood:
         if p.shape != ref.mesh.p.shape or not np.all(np.isfinite(p)):
             raise ValueError(f"p: must be finite vertex positions of shape {ref.mesh.p.shape}")
         rb = ref.reference_blocks
-        rb.maps(p)  # raises on an inverted triangle
+        rb.check(p)  # raises on an inverted triangle
         new = object.__new__(TaylorHood)
         d = new.__dict__
         d.update(mesh=dataclasses.replace(ref.mesh, doflocs=p), intorder=ref.intorder,
@@ -104,14 +105,16 @@ class TaylorHood:
 
     @cached_property
     def _moved_geometry(self) -> dict:
-        """A moved space's ``M``, ``B`` and convection tables, built together on first use
-        (every step on a moving mesh needs them; ``K`` in the form asked for)."""
+        """A moved space's ``M``, ``B``, convection tables and ``K`` in the viscous forms
+        asked of the reference space so far (:meth:`K`), built together on first use:
+        every step on a moving mesh needs them."""
+        forms_in_use = tuple(f"K_{v}" for v in sorted(self.reference._viscous_forms))
         return self.reference_blocks.moved(self.mesh.p, check=False,
-                                           parts=("M", "B", "convection"))
+                                           parts=("M", "B", "convection") + forms_in_use)
 
     def _moved_block(self, name: str):
         """A geometric block of a moved space, from reference-element data."""
-        if name.startswith("K_"):
+        if name not in self._moved_geometry:  # a viscous form nobody asked for before
             return self.reference_blocks.moved(self.mesh.p, check=False, parts=(name,))[name]
         return self._moved_geometry[name]
 
@@ -194,7 +197,12 @@ class TaylorHood:
         return ConvectionKernel(self.sb)
 
     def K(self, viscous: str) -> sp.csr_matrix:
-        """Unit-viscosity viscous block of the given form (``"symmetric"``/``"laplace"``)."""
+        """Unit-viscosity viscous block of the given form (``"symmetric"``/``"laplace"``).
+
+        The form is remembered by the reference space, so that moved spaces build it in
+        the same pass as their other blocks."""
+        if viscous in ("symmetric", "laplace"):
+            self.reference._viscous_forms.add(viscous)
         if viscous == "symmetric":
             return self.K_symmetric
         if viscous == "laplace":
