@@ -42,9 +42,12 @@ class MeshMotion:
         Vertex indices of each particle's outline.
     poses_ref : (3, K) ndarray
         ``(x, y, angle)`` of each particle when the mesh was built.
+    slide_walls : bool
+        Let the vertices of straight axis-parallel walls slide along them
+        (:func:`sliding_wall_nodes`); otherwise every wall vertex stays put.
     """
 
-    def __init__(self, mesh, particle_nodes, poses_ref):
+    def __init__(self, mesh, particle_nodes, poses_ref, slide_walls: bool = True):
         self.p_ref = np.asarray(mesh.p, dtype=float)
         self.t = mesh.t
         self.poses_ref = np.array(poses_ref, dtype=float).reshape(3, -1)
@@ -54,12 +57,25 @@ class MeshMotion:
         boundary[mesh.boundary_nodes()] = True
         for n in self.particle_nodes:
             boundary[n] = True
-        self.fixed = np.flatnonzero(boundary)
-        self.interior = np.flatnonzero(~boundary)
+        slide = (sliding_wall_nodes(mesh, self.particle_nodes) if slide_walls
+                 else (np.zeros(0, dtype=np.int64),) * 2)
+        #: per component: the vertices whose displacement is solved for (interior ones and
+        #: wall ones sliding along that axis) and the ones it is imposed on
+        self.free, self.fixed = [], []
         A = self._stiffness()
-        self._A_ib = A[self.interior][:, self.fixed]
-        self._lu = spla.splu(sp.csc_matrix(A[self.interior][:, self.interior])) \
-            if self.interior.size else None
+        self._A_fb, self._lu = [], []
+        for c in range(2):
+            free = ~boundary
+            free[slide[c]] = True
+            self.free.append(np.flatnonzero(free))
+            self.fixed.append(np.flatnonzero(~free))
+        self.sliding = slide
+        # one factorisation when no wall slides (both components share it)
+        shared = all(s_.size == 0 for s_ in slide)
+        for c in range(1 if shared else 2):
+            f, b = self.free[c], self.fixed[c]
+            self._A_fb.append(A[f][:, b])
+            self._lu.append(spla.splu(sp.csc_matrix(A[f][:, f])) if f.size else None)
         self.area_ref = _signed_areas(self.p_ref, self.t)
 
     def _stiffness(self) -> sp.csr_matrix:
@@ -85,10 +101,43 @@ class MeshMotion:
         for k, n in enumerate(self.particle_nodes):
             d[:, n] = rigid_positions(self.p_ref[:, n], self.poses_ref[:, k], poses[:, k]) \
                 - self.p_ref[:, n]
-        if self._lu is not None:
-            rhs = -(self._A_ib @ d[:, self.fixed].T)
-            d[:, self.interior] = self._lu.solve(np.ascontiguousarray(rhs)).T
+        if len(self._lu) == 1:  # no sliding wall: both components at once
+            if self._lu[0] is not None:
+                f, b = self.free[0], self.fixed[0]
+                rhs = -(self._A_fb[0] @ d[:, b].T)
+                d[:, f] = self._lu[0].solve(np.ascontiguousarray(rhs)).T
+        else:
+            for c in range(2):
+                if self._lu[c] is not None:
+                    f, b = self.free[c], self.fixed[c]
+                    d[c, f] = self._lu[c].solve(-(self._A_fb[c] @ d[c, b]))
         return self.p_ref + d
+
+
+def sliding_wall_nodes(mesh, particle_nodes) -> tuple[np.ndarray, np.ndarray]:
+    """Wall vertices that may slide along their wall: ``(along x, along y)``.
+
+    A vertex of the outer boundary slides along ``x`` when every boundary edge at it is
+    horizontal (it sits inside a horizontal wall), along ``y`` when every one is
+    vertical; corners, vertices of slanted walls and particle outlines stay put.
+    Sliding keeps the wall where it is (the vertex moves along the wall's line) and lets
+    the triangles between a wall and a particle moving along it shear less.
+    """
+    p = mesh.p
+    facets = mesh.facets[:, mesh.boundary_facets()]
+    on_particle = np.zeros(p.shape[1], dtype=bool)
+    for n in particle_nodes:
+        on_particle[n] = True
+    facets = facets[:, ~(on_particle[facets[0]] | on_particle[facets[1]])]
+    d = np.abs(p[:, facets[1]] - p[:, facets[0]])
+    scale = 1e-12 * float(np.abs(p).max())
+    kinds = [d[1] <= scale, d[0] <= scale]  # horizontal, vertical edges
+    count = np.bincount(facets.ravel(), minlength=p.shape[1])
+    out = []
+    for along in kinds:
+        same = np.bincount(facets[:, along].ravel(), minlength=p.shape[1])
+        out.append(np.flatnonzero((count > 0) & (same == count)).astype(np.int64))
+    return out[0], out[1]
 
 
 def _signed_areas(p: np.ndarray, t: np.ndarray) -> np.ndarray:

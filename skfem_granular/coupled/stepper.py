@@ -100,6 +100,14 @@ ALE_MIN_ANGLE = 12.0
 #: (now, or at the positions predicted for the end of the next step).
 ALE_MIN_AREA_RATIO = 0.3
 
+#: Moving mesh: the remesh rule looks this many (largest) steps ahead, the poses
+#: extrapolated from the last two steps.
+ALE_LOOK_AHEAD = 2.0
+
+#: Moving mesh: vertices of straight axis-parallel walls slide along them
+#: (:func:`~skfem_granular.coupled.mesh_motion.sliding_wall_nodes`).
+ALE_SLIDE_WALLS = False
+
 #: Moving mesh: the mesh follows the particles' poses from the corrector's iterates until
 #: they change by less than this fraction of the outline edge length.
 ALE_POSE_TOL = 1e-8
@@ -214,7 +222,7 @@ class CoupledStepper:
             nodes = [np.unique(built.facets[:, built.boundaries[f"particle{k}"]])
                      for k in range(dem.n)]
             poses = np.vstack([self.mesh_centers, self.mesh_angles[None, :]])
-            self.motion = MeshMotion(built, nodes, poses)
+            self.motion = MeshMotion(built, nodes, poses, slide_walls=ALE_SLIDE_WALLS)
         self.timings["assembly"] += time.perf_counter() - t0
 
     def _remesh_if_moved(self):
@@ -430,7 +438,7 @@ class CoupledStepper:
         # when that step moves a particle by more than a tenth of an outline edge, or the
         # mesh is already within 1.5x of the thresholds
         q = self.dem.particles.q
-        ahead = q + 2.0 * (q - s.q_prev) * (self.scene.time.dt / s.dt_prev)
+        ahead = q + ALE_LOOK_AHEAD * (q - s.q_prev) * (self.scene.time.dt / s.dt_prev)
         reach = lag(q[:2], q[2], ahead[:2], ahead[2], self.radius)
         if (np.all(reach < 0.1 * self.edge) and angle > 1.5 * ALE_MIN_ANGLE
                 and ratio > 1.5 * ALE_MIN_AREA_RATIO):
