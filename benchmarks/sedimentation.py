@@ -21,7 +21,8 @@ and printing a markdown table:
   and 24-gon variants: angle of repose fitted to the free surface.
 
 Options passed through to the scene: ``--t-end``, ``--dt``, ``--delta-l``,
-``--sigma``, ``--adaptive/--tol``, ``--remesh-fraction`` and ``--mesh-motion``
+``--sigma``, ``--adaptive/--tol``, ``--remesh-fraction``, ``--remesh-travel`` and
+``--mesh-motion``
 (``ale`` | ``fixed``: set when the Scene has a ``mesh_motion`` field, otherwise
 ignored with a printed note). Literature values come from
 ``skfem_granular.validation_data.load("sedimentation")`` (docs/sedimentation.md).
@@ -77,6 +78,8 @@ def configure(scene: Scene, args) -> tuple[Scene, list[str]]:
         scene = dataclasses.replace(scene, mesh=dataclasses.replace(scene.mesh, **mkw))
     if args.remesh_fraction is not None:
         scene = dataclasses.replace(scene, remesh_fraction=args.remesh_fraction)
+    if args.remesh_travel is not None:
+        scene = dataclasses.replace(scene, remesh_travel=args.remesh_travel)
     if args.mesh_motion is not None:
         names = {f.name for f in dataclasses.fields(scene)}
         if "mesh_motion" in names:
@@ -88,8 +91,12 @@ def configure(scene: Scene, args) -> tuple[Scene, list[str]]:
     return scene, notes
 
 
-def run_scene(scene: Scene):
-    """Run ``scene`` to its end; returns (history, summary, wall time, failure or None)."""
+def run_scene(scene: Scene, on_step=None):
+    """Run ``scene`` to its end; returns (history, summary, wall time, failure or None).
+
+    ``on_step(sim, t)``, if given, is called after every accepted step (to look at
+    the mesh in use, e.g. its symmetry).
+    """
     from skfem_granular.coupled.stepper import SimulationError
     from skfem_granular.simulation import Simulation
 
@@ -97,7 +104,9 @@ def run_scene(scene: Scene):
     sim = Simulation(scene)
     failure = None
     try:
-        sim.run(progress=False)
+        for t, _ in sim.evolve(progress=False):
+            if on_step is not None:
+                on_step(sim, t)
     except SimulationError as exc:  # keep what was computed
         failure = str(exc)
     res = sim.result
@@ -205,23 +214,28 @@ def check_settling(args) -> dict:
 
 
 def check_dkt(args) -> dict:
+    """Check 3: drafting, kissing and tumbling times (definitions: docs/sedimentation.md)."""
     scene, notes = configure(Scene.bundled("dkt_two_disks"), args)
     hist, summary, wall, failure = run_scene(scene)
     r = shadow_radius(scene.particles[0])
     m = measures.kiss_tumble_times(hist.t, hist.x, hist.y, r)
-    gap = m.pop("gap")
+    gap, tilt = m.pop("gap"), m.pop("tilt")
     core_gap = gap + 2 * r * (1 - scene.particles[0].core_ratio)
+    lead = int(np.argmin(hist.y[0]))
     out = {"check": 3, **run_info(scene, summary, wall, failure, notes), "measured": m,
            "min_core_gap": float(core_gap.min()),
+           "max_speed": float(np.hypot(hist.vx, hist.vy).max()),
            "literature": load("sedimentation")["checks"]["drafting_kissing_tumbling"],
-           "history": {"t": hist.t.tolist(), "gap": gap.tolist(),
-                       "y": hist.y.tolist(), "x": hist.x.tolist()}}
-    print("\n| quantity | measured | literature |\n|---|---|---|")
-    for k in ("t_drafting", "t_kiss", "t_tumble"):
-        print(f"| {k} | {m[k]:.4g} s | not found |")
-    print(f"| min shadow gap | {m['min_gap'] * 1e6:.1f} um | - |")
-    print(f"| min core gap | {core_gap.min() * 1e6:.1f} um | - |")
-    print(f"\nstages in order: {m['stages']}; wall {wall:.1f} s")
+           "history": {"t": hist.t.tolist(), "gap": gap.tolist(), "tilt_deg": tilt.tolist(),
+                       "y": hist.y.tolist(), "x": hist.x.tolist(), "vx": hist.vx.tolist(),
+                       "vy": hist.vy.tolist()}, "leading_particle": lead}
+    print("\n| quantity | measured |\n|---|---|")
+    for k in ("t_drafting", "t_kiss", "t_min_gap", "t_tilt45", "t_tumble"):
+        print(f"| {k} | {m[k]:.4g} s |")
+    print(f"| min shadow gap | {m['min_gap'] * 1e6:.1f} um |")
+    print(f"| min core gap | {core_gap.min() * 1e6:.1f} um |")
+    print(f"\nstages in order: {m['stages']}; mesh {summary.get('mesh')}, "
+          f"{summary.get('remeshes')} remeshes; wall {wall:.1f} s")
     return out
 
 
@@ -239,27 +253,89 @@ def check_migration(args) -> dict:
     return out
 
 
+def long_axis(V) -> float:
+    """Angle (rad) of the longest edge of the outline ``V`` (2, n): a rectangle's long axis."""
+    e = np.diff(V, axis=1, append=V[:, :1])
+    k = int(np.argmax(np.hypot(*e)))
+    return float(np.arctan2(e[1, k], e[0, k]))
+
+
+class MirrorWatch:
+    """Samples whether the mesh in use is mirror-symmetric about ``x = x_axis``.
+
+    Called after every step (``run_scene``'s ``on_step``); looks every ``every``
+    steps and at every change of the mesh's vertex count (a remesh).
+    """
+
+    def __init__(self, x_axis: float, every: int = 20):
+        self.x_axis, self.every = x_axis, every
+        self.samples, self.n, self._nv = [], 0, None
+
+    def __call__(self, sim, t):
+        from skfem_granular.studies import mirror_symmetric
+
+        m = sim.mesh
+        self.n += 1
+        if self.n % self.every and m.p.shape[1] == self._nv:
+            return
+        self._nv = m.p.shape[1]
+        self.samples.append((float(t), bool(mirror_symmetric(m, 0, self.x_axis))))
+
+    def summary(self) -> dict:
+        bad = [t for t, ok in self.samples if not ok]
+        return {"samples": len(self.samples), "symmetric": len(self.samples) - len(bad),
+                "first_asymmetric_t": bad[0] if bad else None}
+
+
 def check_shape(args) -> dict:
+    """Check 5: the rectangle's long axis turns broadside; the hexagon does not rotate."""
     out = {"check": 5, "runs": []}
-    for name in ("settling_rectangle", "settling_hexagon"):
+    names = [n for n in ("settling_rectangle", "settling_hexagon") if n in args.scenes]
+    for name in names:
         scene, notes = configure(Scene.bundled(name), args)
-        hist, summary, wall, failure = run_scene(scene)
-        V = scene.particles[0].polygon.vertices
-        row = {**run_info(scene, summary, wall, failure, notes)}
+        x0, _, x1, _ = scene.domain
+        watch = MirrorWatch(0.5 * (x0 + x1)) if name == "settling_hexagon" else None
+        hist, summary, wall, failure = run_scene(scene, watch)
+        p = scene.particles[0]
+        V = p.polygon.vertices
+        row = {**run_info(scene, summary, wall, failure, notes),
+               "mesh_motion": "ale" if scene.moving_mesh else "fixed"}
+        speed = np.hypot(hist.vx[:, 0], hist.vy[:, 0])
+        row["max_speed"] = float(speed.max())
+        row["y_final"] = float(hist.y[-1, 0])
         if name == "settling_rectangle":
-            e = np.diff(V, axis=1, append=V[:, :1])
-            k = int(np.argmax(np.hypot(*e)))
-            axis0 = float(np.arctan2(e[1, k], e[0, k]))
-            ang = measures.axis_orientation(hist.angle[:, 0], axis0)
-            row["axis_angle_deg"] = {"initial": float(ang[0]), "final": float(ang[-1])}
-            row["history"] = {"t": hist.t.tolist(), "axis_angle_deg": ang.tolist()}
-            print(f"\nrectangle: long axis {ang[0]:.1f} -> {ang[-1]:.2f} deg from horizontal "
-                  f"(0 = broadside); wall {wall:.1f} s")
+            ang = measures.axis_orientation(hist.angle[:, 0], long_axis(V))
+            L = float(np.hypot(*np.diff(V, axis=1)).max())  # the long side
+            row.update(long_side=L, re_max_long_side=float(
+                scene.fluid.density * speed.max() * L / scene.fluid.viscosity))
+            row["axis_angle_deg"] = {"initial": float(ang[0]), "final": float(ang[-1]),
+                                     "max": float(ang.max()),
+                                     "t_within_5deg": measures.settled_after(hist.t, ang, 5.0),
+                                     "t_within_1deg": measures.settled_after(hist.t, ang, 1.0)}
+            row["history"] = {"t": hist.t.tolist(), "axis_angle_deg": ang.tolist(),
+                              "y": hist.y[:, 0].tolist(), "vy": hist.vy[:, 0].tolist(),
+                              "omega": hist.omega[:, 0].tolist()}
+            a = row["axis_angle_deg"]
+            print(f"\nrectangle: long axis {a['initial']:.1f} -> {a['final']:.3g} deg from "
+                  f"horizontal (0 = broadside), within 5 deg from t = {a['t_within_5deg']:.3g} s, "
+                  f"within 1 deg from {a['t_within_1deg']:.3g} s; max speed "
+                  f"{row['max_speed']:.4g} m/s (Re_L {row['re_max_long_side']:.3g}); "
+                  f"wall {wall:.1f} s", flush=True)
         else:
+            R = shadow_radius(p) * p.core_ratio
             row["max_abs_omega"] = float(np.abs(hist.omega[:, 0]).max())
+            row["omega_scale"] = float(speed.max() / R)  # U / R
             row["max_abs_vx"] = float(np.abs(hist.vx[:, 0]).max())
-            print(f"hexagon: max |omega| {row['max_abs_omega']:.2e} rad/s, max |v_x| "
-                  f"{row['max_abs_vx']:.2e} m/s; wall {wall:.1f} s")
+            row["max_abs_x_drift"] = float(np.abs(hist.x[:, 0] - hist.x[0, 0]).max())
+            row["max_abs_angle"] = float(np.abs(hist.angle[:, 0]).max())
+            row["mirror"] = watch.summary()
+            row["history"] = {"t": hist.t.tolist(), "omega": hist.omega[:, 0].tolist(),
+                              "x": hist.x[:, 0].tolist(), "vy": hist.vy[:, 0].tolist()}
+            print(f"hexagon: max |omega| {row['max_abs_omega']:.2e} rad/s "
+                  f"(U/R = {row['omega_scale']:.3g}), max |x drift| "
+                  f"{row['max_abs_x_drift']:.2e} m, max |v_x| {row['max_abs_vx']:.2e} m/s; "
+                  f"mesh mirror-symmetric at {row['mirror']['symmetric']} of "
+                  f"{row['mirror']['samples']} samples; wall {wall:.1f} s", flush=True)
         out["runs"].append(row)
     return out
 
@@ -347,11 +423,14 @@ def main(argv=None):
     ap.add_argument("--delta-l", type=float)
     ap.add_argument("--sigma", type=float)
     ap.add_argument("--remesh-fraction", type=float)
+    ap.add_argument("--remesh-travel", type=float)
     ap.add_argument("--mesh-motion", choices=("ale", "fixed"))
     ap.add_argument("--coupled", action="store_true",
                     help="terminal: also run the free-settling scenes (long)")
     ap.add_argument("--shape", nargs="+", default=["hexagons", "irregular", "24"],
                     help="repose: grain shapes (hexagons, irregular, or a number of sides)")
+    ap.add_argument("--scenes", nargs="+", default=["settling_rectangle", "settling_hexagon"],
+                    help="shape: which of the two scenes to run")
     ap.add_argument("--law", help='repose: contact-law overrides as JSON, e.g. \'{"gamma": 1}\'')
     ap.add_argument("--out", help="output directory of the runs (default: none written)")
     ap.add_argument("--tag", help="suffix of the JSON file name")

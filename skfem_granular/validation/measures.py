@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["angle_of_repose", "axis_orientation", "kiss_tumble_times", "lateral_offset",
-           "particle_reynolds", "settling_summary", "velocity_plateau"]
+           "particle_reynolds", "settled_after", "settling_summary", "velocity_plateau"]
 
 
 def particle_reynolds(vx, vy, d: float, rho_f: float, mu: float) -> np.ndarray:
@@ -75,7 +75,8 @@ def settling_summary(t, x, y, vx, vy, d: float, rho_f: float, mu: float,
             "max_drift": float(np.abs(x - x[0]).max())}
 
 
-def kiss_tumble_times(t, x, y, radius: float, kiss_gap: float = 0.0) -> dict:
+def kiss_tumble_times(t, x, y, radius: float, kiss_gap: float = 0.0,
+                      draft_rel: float = 0.01) -> dict:
     """Drafting, kissing and tumbling of two disks, from their centre histories.
 
     Parameters
@@ -89,17 +90,22 @@ def kiss_tumble_times(t, x, y, radius: float, kiss_gap: float = 0.0) -> dict:
     kiss_gap : float
         The pair *kisses* when the gap first falls to ``kiss_gap`` or below
         (0: shadows touch).
+    draft_rel : float
+        Drafting: the trailing disk falls faster than the leading one by more
+        than ``draft_rel`` of the leading disk's speed.
 
     Returns
     -------
     dict
-        ``t_kiss`` (first time ``gap <= kiss_gap``; NaN if never), ``min_gap``
-        and ``t_min_gap``, ``t_tumble`` (first time after the kiss that the
-        pair's vertical order swaps, the line of centres passing the
-        horizontal; NaN if never), ``t_drafting`` (first time the trailing
-        disk falls faster than the leading one by more than 1 % of the
-        leading disk's speed), ``stages`` (True when drafting, kissing and
-        tumbling all happen in that order), ``gap`` the gap history.
+        ``t_drafting`` (first time the drafting criterion holds; velocities
+        by central differences of ``y``), ``t_kiss`` (first time
+        ``gap <= kiss_gap``; NaN if never), ``min_gap`` and ``t_min_gap``,
+        ``t_tilt45`` (first time after the kiss that the line of centres is
+        45 degrees or more from the vertical), ``t_tumble`` (first time after
+        the kiss that the pair's vertical order swaps, the line of centres
+        passing the horizontal), each NaN if never; ``stages`` (True when
+        drafting, kissing and tumbling all happen in that order), ``gap`` and
+        ``tilt`` (degrees from the vertical, trailing disk above = 0) histories.
     """
     t = np.asarray(t, float)
     x = np.asarray(x, float)
@@ -110,21 +116,25 @@ def kiss_tumble_times(t, x, y, radius: float, kiss_gap: float = 0.0) -> dict:
     kiss = np.flatnonzero(gap <= kiss_gap)
     t_kiss = float(t[kiss[0]]) if kiss.size else float("nan")
     k_min = int(np.argmin(gap))
-    order = np.sign(y[:, trail] - y[:, lead])  # +1 while the trailing disk is above
-    t_tumble = float("nan")
-    if kiss.size:
-        after = np.flatnonzero((order <= 0) & (np.arange(t.size) >= kiss[0]))
-        if after.size:
-            t_tumble = float(t[after[0]])
+    tilt = np.degrees(np.arctan2(np.abs(x[:, trail] - x[:, lead]), y[:, trail] - y[:, lead]))
+
+    def first_after_kiss(mask):
+        if not kiss.size:
+            return float("nan")
+        k = np.flatnonzero(mask & (np.arange(t.size) >= kiss[0]))
+        return float(t[k[0]]) if k.size else float("nan")
+
+    t_tumble = first_after_kiss(tilt >= 90.0)  # the trailing disk no longer above
+    t_tilt45 = first_after_kiss(tilt >= 45.0)
     vy = np.gradient(y, t, axis=0) if t.size > 1 else np.zeros_like(y)
-    faster = vy[:, trail] < vy[:, lead] - 0.01 * np.abs(vy[:, lead])
+    faster = vy[:, trail] < vy[:, lead] - draft_rel * np.abs(vy[:, lead])
     draft = np.flatnonzero(faster & (np.abs(vy[:, lead]) > 0))
     t_draft = float(t[draft[0]]) if draft.size else float("nan")
     stages = bool(np.isfinite(t_draft) and np.isfinite(t_kiss) and np.isfinite(t_tumble)
                   and t_draft <= t_kiss <= t_tumble)
-    return {"t_drafting": t_draft, "t_kiss": t_kiss, "t_tumble": t_tumble,
-            "min_gap": float(gap[k_min]), "t_min_gap": float(t[k_min]), "stages": stages,
-            "gap": gap}
+    return {"t_drafting": t_draft, "t_kiss": t_kiss, "t_tilt45": t_tilt45,
+            "t_tumble": t_tumble, "min_gap": float(gap[k_min]), "t_min_gap": float(t[k_min]),
+            "stages": stages, "gap": gap, "tilt": tilt}
 
 
 def lateral_offset(t, x, x_centre: float, half_width: float) -> dict:
@@ -134,17 +144,24 @@ def lateral_offset(t, x, x_centre: float, half_width: float) -> dict:
     ``final``, ``max`` and ``t_1pc`` (first time after which the offset stays
     below 1 %; NaN if it never does).
     """
-    t = np.asarray(t, float)
     off = np.abs(np.asarray(x, float) - x_centre) / half_width
-    above = np.flatnonzero(off >= 0.01)
-    if above.size == 0:
-        t1 = float(t[0])
-    elif above[-1] == t.size - 1:
-        t1 = float("nan")
-    else:
-        t1 = float(t[above[-1] + 1])
     return {"offset": off, "initial": float(off[0]), "final": float(off[-1]),
-            "max": float(off.max()), "t_1pc": t1}
+            "max": float(off.max()), "t_1pc": settled_after(t, off, 0.01)}
+
+
+def settled_after(t, q, bound: float) -> float:
+    """The first time after which ``q`` stays below ``bound`` to the end of the history.
+
+    ``t[0]`` when ``q`` is below ``bound`` throughout; NaN when its last value
+    is not (the history ends before ``q`` settles).
+    """
+    t = np.asarray(t, float)
+    above = np.flatnonzero(np.asarray(q, float) >= bound)
+    if above.size == 0:
+        return float(t[0])
+    if above[-1] == t.size - 1:
+        return float("nan")
+    return float(t[above[-1] + 1])
 
 
 def axis_orientation(angle, axis0: float) -> np.ndarray:
