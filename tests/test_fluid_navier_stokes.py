@@ -79,6 +79,11 @@ def test_newton_converges_quadratically():
 def test_newton_failure_gives_clear_error():
     with pytest.raises(ConvergenceError, match="did not converge in 2 iterations"):
         sg.solve_steady(_mesh(2), sg.Fluid(1.0, 1e-4), {"all": kovasznay}, convection=True,
+                        maxiter=2, continuation="off")
+    # two Newton iterations reach no stage of the continuation either
+    with pytest.raises(ConvergenceError, match="did not converge even at 1024 times the "
+                                               "viscosity 0.0001 .continuation start."):
+        sg.solve_steady(_mesh(2), sg.Fluid(1.0, 1e-4), {"all": kovasznay}, convection=True,
                         maxiter=2)
 
 

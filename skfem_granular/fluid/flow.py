@@ -25,12 +25,17 @@ class SolveReport:
         Linear solver statistics.
     wall_time : dict
         Seconds spent per phase (``assembly``, ``solve``, ...).
+    continuation : list of dict
+        The viscosity continuation that reached the solution, one entry per stage
+        (``factor``, ``iterations``, ``converged``); empty when Newton converged
+        directly.
     """
 
     iterations: int = 0
     residuals: list = field(default_factory=list)
     solver: dict = field(default_factory=dict)
     wall_time: dict = field(default_factory=dict)
+    continuation: list = field(default_factory=list)
 
 
 class Flow:

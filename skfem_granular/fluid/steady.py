@@ -7,6 +7,7 @@ import time
 import numpy as np
 
 from .boundary import DirichletData
+from .continuation import viscosity_continuation
 from .errors import ConvergenceError
 from .flow import Flow, SolveReport
 from .linsolve import make_solver
@@ -14,6 +15,13 @@ from .newton import newton_iterate
 from .operator import NavierStokesOperator
 from .properties import Fluid
 from .space import TaylorHood
+
+#: Newton is taken to diverge when the residual exceeds the smallest one seen by this
+#: factor (from the third iteration on).
+DIVERGED = 1e4
+
+#: Newton iterations allowed to one stage of a continuation.
+STAGE_MAXITER = 12
 
 
 def as_space(mesh_or_space) -> TaylorHood:
@@ -23,7 +31,8 @@ def as_space(mesh_or_space) -> TaylorHood:
 
 def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *,
                  body_force=None, viscous: str = "auto", solver="auto", tol: float = 1e-10,
-                 maxiter: int = 25, initial: Flow | np.ndarray | None = None) -> Flow:
+                 maxiter: int = 25, initial: Flow | np.ndarray | None = None,
+                 continuation: str = "auto") -> Flow:
     """Solve the steady Stokes or Navier-Stokes equations.
 
     Parameters
@@ -52,6 +61,11 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
         Newton iteration limit.
     initial : Flow or ndarray, optional
         Initial guess for Newton.
+    continuation : {"auto", "off"}
+        ``"auto"``: when Newton fails (no convergence in ``maxiter`` iterations, or a
+        residual :data:`DIVERGED` times above the best one seen), reach the solution
+        through larger viscosities (:func:`~.continuation.viscosity_continuation`);
+        the path is in ``flow.report.continuation``. ``"off"``: raise instead.
 
     Returns
     -------
@@ -62,10 +76,30 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
     Raises
     ------
     ConvergenceError
-        When Newton does not converge within ``maxiter`` iterations.
+        When Newton does not converge within ``maxiter`` iterations (and, with
+        ``continuation="auto"``, neither does the continuation).
     """
+    if continuation not in ("auto", "off"):
+        raise ValueError(f"continuation = {continuation!r}: must be 'auto' or 'off'")
     t_start = time.perf_counter()
     space = as_space(mesh)
+    if convection and continuation == "auto":
+        options = dict(body_force=body_force, viscous=viscous, solver=solver, tol=tol,
+                       maxiter=maxiter)
+        try:
+            return solve_steady(space, fluid, velocity, True, initial=initial,
+                                continuation="off", **options)
+        except ConvergenceError:
+            pass
+
+        def stage(fl, start):  # from a close guess Newton needs few iterations, or fails
+            return solve_steady(space, fl, velocity, True, initial=start, continuation="off",
+                                **dict(options, maxiter=min(maxiter, STAGE_MAXITER)))
+
+        flow, stages = viscosity_continuation(stage, fluid)
+        flow.report.continuation = stages
+        flow.report.wall_time["total"] = time.perf_counter() - t_start
+        return flow
     op = NavierStokesOperator(space, fluid, DirichletData(space, velocity), convection=convection,
                               viscous=viscous, body_force=body_force)
     times = {"setup": time.perf_counter() - t_start, "assembly": 0.0, "solve": 0.0}
@@ -117,8 +151,8 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
             rel = float(np.linalg.norm(r[free]) / ref)
             report.residuals.append(rel)
             step = np.linalg.norm(dx) / max(np.linalg.norm(x[free]), 1e-300)
-            if not np.isfinite(rel):
-                known["failed"] = True
+            if not np.isfinite(rel) or (it >= 3 and rel > DIVERGED * min(report.residuals)):
+                known["failed"] = True  # diverging: no use iterating to maxiter
                 return True
             return rel <= tol or step <= tol
 
@@ -128,8 +162,8 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
             raise ConvergenceError(
                 f"solve_steady: Newton did not converge in {report.iterations} iterations "
                 f"(relative residual {report.residuals[-1]:.2e} > tol {tol:.0e}); the Reynolds "
-                f"number may be too high for this mesh: try continuation (initial=a flow at "
-                f"lower speed) or maxiter")
+                f"number may be too high for this mesh: try continuation='auto', initial=a "
+                f"flow at lower speed, or a larger maxiter")
     op.normalize_pressure(x)
     report.solver = lin.stats.as_dict()
     times["total"] = time.perf_counter() - t_start
