@@ -218,10 +218,13 @@ def degenerate_nodes(tri: Triangulation, can_go: NDArray[np.bool_], sizing: Sizi
 
 
 def merge_degenerate(layout: Layout, sizing: Sizing, max_aspect: float = MERGE_ASPECT,
-                     rounds: int = 4) -> tuple[Layout, Triangulation]:
+                     rounds: int = 4, tri: Triangulation | None = None
+                     ) -> tuple[Layout, Triangulation]:
     """Remove nodes of degenerate triangles and re-triangulate until none is left
-    that removing a movable node can fix (at most ``rounds`` passes)."""
-    tri = triangulate(layout)
+    that removing a movable node can fix (at most ``rounds`` passes); ``tri``:
+    the layout's triangulation when the caller already has it."""
+    if tri is None:
+        tri = triangulate(layout)
     for _ in range(rounds):
         drop = degenerate_nodes(tri, movable(layout), sizing, max_aspect)
         if drop.size == 0:

@@ -40,10 +40,11 @@ import triangle
 from numpy.typing import NDArray
 
 from .cleanup import merge_degenerate
-from .geometry import centroid, edge_distance, inside, outline_lengths, project_to_edge
+from .gaps import split_gap_edges
+from .geometry import centroids, edge_distance, inside, project_to_edge
 from .graded import check_rounds, check_sigma, prepare
-from .pslg import Layout, fixed_point, triangulate
-from .quality import angles, aspect_ratio, signed_areas
+from .pslg import Layout, Triangulation, fixed_point, triangulate
+from .quality import angles_and_aspect, signed_areas
 from .relax import relax
 from .repair import REPAIR_ROUNDS, SAFE_MAX_ASPECT, SAFE_MIN_ANGLE, circumcenters, repair_nodes
 from .skfem_mesh import to_body_fitted
@@ -71,6 +72,10 @@ groups. Eq. 4's own rate, ``1 + Delta_l / r0`` (1.5 for the collapse's cores at
 ``delta_l`` = 0.2 mm), coarsens too fast for the forces on a block moving in a
 closed box (0.74 % against 0.47 % with 1.2, measured in docs/meshing.md)."""
 
+OVERSIZE = 1e-3
+"""Fraction of the fill's triangles that may stay above their area bound (the
+last refinements of ``triangle`` each fix a handful of triangles)."""
+
 MAX_FIELD_ELEMENTS = 2_000_000
 """Default of ``max_elements``."""
 
@@ -79,6 +84,7 @@ SPLIT_ROUNDS = 3
 
 NEAREST = 6
 """Particles (by centroid) searched for the nearest outline of a point."""
+
 
 
 class SizeField:
@@ -101,24 +107,45 @@ class SizeField:
 
     def __init__(self, D: NDArray[np.float64], outlines: list[NDArray[np.float64]],
                  sigma: float | None) -> None:
-        self.D = D
-        n = len(outlines)
-        self.centers = np.array([centroid(P) for P in outlines])
-        self.r0 = np.array([np.max(np.hypot(*(P - c[:, None])))
-                            for P, c in zip(outlines, self.centers, strict=True)])
-        self.dl = np.array([float(np.mean(outline_lengths(P))) for P in outlines])
-        self.slope = self.dl / self.r0 if sigma is None else np.full(n, float(sigma) - 1.0)
-        m = max(P.shape[1] for P in outlines)
-        A = np.empty((n, m, 2))
-        E = np.zeros((n, m, 2))
-        for i, P in enumerate(outlines):
-            A[i, :P.shape[1]] = P.T
-            A[i, P.shape[1]:] = P[:, -1]
-            E[i, :P.shape[1]] = (np.roll(P, -1, axis=1) - P).T
-        self._A, self._E = A, E
-        self._L2 = np.maximum(np.sum(E * E, axis=2), 1e-300)
         from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
 
+        self.D = D
+        n = len(outlines)
+        counts = np.array([P.shape[1] for P in outlines])
+        X = np.hstack(outlines)
+        first = np.cumsum(counts) - counts
+        owner = np.repeat(np.arange(n), counts)
+        nxt = np.arange(X.shape[1]) + 1
+        nxt[first + counts - 1] = first
+        E = X[:, nxt] - X
+        self.centers = centroids(outlines)
+        self.r0 = np.maximum.reduceat(np.hypot(*(X - self.centers.T[:, owner])), first)
+        self.dl = np.add.reduceat(np.hypot(*E), first) / counts
+        self.slope = self.dl / self.r0 if sigma is None else np.full(n, float(sigma) - 1.0)
+        # outline edges, for the graded size
+        self._edge_A, self._edge_E, self._edge_owner = X.T, E.T, owner
+        self._edge_tree = cKDTree(X.T + 0.5 * E.T)
+        prev = np.empty_like(nxt)
+        prev[nxt] = np.arange(nxt.size)
+        self._edge_prev, self._edge_next = prev, nxt
+        # the polygons without their subdivision nodes (same shapes, fewer edges), for
+        # the distances to whole particles: (n, m, 2), padded with empty edges
+        Ep = E[:, prev]
+        cross = Ep[0] * E[1] - Ep[1] * E[0]
+        corner = np.abs(cross) > 1e-9 * np.hypot(*Ep) * np.hypot(*E)
+        cid = np.flatnonzero(corner)
+        n_c = np.bincount(owner[cid], minlength=n)
+        rank = np.arange(cid.size) - np.repeat(np.cumsum(n_c) - n_c, n_c)
+        m = int(n_c.max())
+        A = np.repeat((X[:, cid[np.cumsum(n_c) - 1]].T)[:, None, :], m, axis=1)
+        A[owner[cid], rank] = X[:, cid].T
+        Ec = np.zeros((n, m, 2))
+        nxt_c = np.roll(A, -1, axis=1)
+        nxt_c[np.arange(n), n_c - 1] = A[:, 0]
+        valid = np.arange(m)[None, :] < n_c[:, None]
+        Ec[valid] = (nxt_c - A)[valid]
+        self._A, self._E = A, Ec
+        self._L2 = np.maximum(np.sum(Ec * Ec, axis=2), 1e-300)
         self._tree = cKDTree(self.centers)
         self.k = min(NEAREST, n)
 
@@ -129,13 +156,17 @@ class SizeField:
         _, idx = self._tree.query(x.T, k=self.k)
         idx = np.asarray(idx).reshape(M, self.k)
         d = np.empty((M, self.k))
-        for a in range(0, M, 4096):
-            b = min(M, a + 4096)
+        Ax, Ay, Ex, Ey = self._A[..., 0], self._A[..., 1], self._E[..., 0], self._E[..., 1]
+        inv = 1.0 / self._L2
+        for a in range(0, M, 8192):
+            b = min(M, a + 8192)
             ii = idx[a:b]
-            R = x.T[a:b, None, None, :] - self._A[ii]
-            t = np.clip(np.sum(R * self._E[ii], axis=3) / self._L2[ii], 0.0, 1.0)
-            V = R - t[..., None] * self._E[ii]
-            d[a:b] = np.sqrt(np.min(np.sum(V * V, axis=3), axis=2))
+            ex, ey = Ex[ii], Ey[ii]
+            rx, ry = x[0, a:b, None, None] - Ax[ii], x[1, a:b, None, None] - Ay[ii]
+            t = np.clip((rx * ex + ry * ey) * inv[ii], 0.0, 1.0)
+            rx -= t * ex
+            ry -= t * ey
+            d[a:b] = np.sqrt(np.min(rx * rx + ry * ry, axis=2))
         return d, idx
 
     def closest_point(self, x: NDArray[np.float64], k: NDArray[np.int64]) -> NDArray:
@@ -147,11 +178,20 @@ class SizeField:
         return Y[np.arange(x.shape[1]), j].T
 
     def grade(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The graded size alone (no gap narrowing), ``(M,)``."""
-        if x.shape[1] == 0:
+        """The graded size alone (no gap narrowing), ``(M,)``: the rule over the
+        outline edge with the nearest midpoint and its two neighbours."""
+        M = x.shape[1]
+        if M == 0:
             return np.zeros(0)
-        d, idx = self.nearest(x)
-        return np.min(self.dl[idx] + self.slope[idx] * d, axis=1)
+        _, j = self._edge_tree.query(x.T)
+        j = np.column_stack([j, self._edge_prev[j], self._edge_next[j]])  # (M, 3)
+        A, E = self._edge_A[j], self._edge_E[j]                       # (M, 3, 2)
+        Rx, Ry = x[0][:, None] - A[..., 0], x[1][:, None] - A[..., 1]
+        L2 = np.maximum(E[..., 0] ** 2 + E[..., 1] ** 2, 1e-300)
+        t = np.clip((Rx * E[..., 0] + Ry * E[..., 1]) / L2, 0.0, 1.0)
+        d = np.hypot(Rx - t * E[..., 0], Ry - t * E[..., 1])
+        own = self._edge_owner[j[:, 0]]
+        return self.dl[own] + self.slope[own] * np.min(d, axis=1)
 
     def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         if x.shape[1] == 0:
@@ -196,24 +236,29 @@ def nearest_wall_point(D: NDArray[np.float64], x: NDArray[np.float64]) -> NDArra
 def layer_nodes(D: NDArray[np.float64], outlines: list[NDArray[np.float64]],
                 field: SizeField) -> NDArray[np.float64]:
     """The first layer of nodes over every outline, pulled into narrow gaps (module notes)."""
-    S, N, T, own, kind = [], [], [], [], []
-    turn_min = np.radians(CORNER_TURN)
-    for p, P in enumerate(outlines):
-        E = np.roll(P, -1, axis=1) - P
-        L = np.hypot(*E)
-        n = np.vstack([E[1], -E[0]]) / L
-        n_prev = np.roll(n, 1, axis=1)
-        bis = n + n_prev
-        bis /= np.hypot(*bis)
-        corner = np.arccos(np.clip(np.sum(n * n_prev, axis=0), -1.0, 1.0)) > turn_min
-        L_node = 0.5 * (L + np.roll(L, 1))
-        S += [0.5 * (P + np.roll(P, -1, axis=1)), P]
-        N += [n, bis]
-        T += [0.5 * np.sqrt(3.0) * L, L_node]
-        own += [np.full(L.size, p), np.full(L.size, p)]
-        kind += [np.zeros(L.size, dtype=np.int8), np.where(corner, 2, 1).astype(np.int8)]
-    S, N = np.hstack(S), np.hstack(N)
-    T, own, kind = np.concatenate(T), np.concatenate(own), np.concatenate(kind)
+    counts = np.array([P.shape[1] for P in outlines])
+    X = np.hstack(outlines)
+    start = np.cumsum(counts) - counts
+    owner = np.repeat(np.arange(counts.size), counts)
+    nxt = np.arange(X.shape[1]) + 1
+    nxt[start + counts - 1] = start
+    prev = np.empty_like(nxt)
+    prev[nxt] = np.arange(nxt.size)
+    E = X[:, nxt] - X
+    L = np.hypot(*E)
+    n = np.vstack([E[1], -E[0]]) / L
+    n_prev = n[:, prev]
+    bis = n + n_prev
+    bis /= np.hypot(*bis)
+    corner = np.arccos(np.clip(np.sum(n * n_prev, axis=0), -1.0, 1.0)) > np.radians(CORNER_TURN)
+    # per particle its edge midpoints, then its nodes
+    order = np.argsort(np.concatenate([2 * owner, 2 * owner + 1]), kind="stable")
+    S = np.hstack([0.5 * (X + X[:, nxt]), X])[:, order]
+    N = np.hstack([n, bis])[:, order]
+    T = np.concatenate([0.5 * np.sqrt(3.0) * L, 0.5 * (L + L[prev])])[order]
+    own = np.concatenate([owner, owner])[order]
+    kind = np.concatenate([np.zeros(L.size, dtype=np.int8),
+                           np.where(corner, 2, 1).astype(np.int8)])[order]
     d, idx = field.nearest(S)
     d = np.where(idx == own[:, None], np.inf, d)
     j = np.argmin(d, axis=1)
@@ -315,22 +360,34 @@ def _pslg(layout: Layout) -> dict:
 
     segs, marks, _ = boundary_segments(layout)
     return {"vertices": layout.points().T, "segments": segs, "segment_markers": marks[:, None],
-            "holes": np.array([centroid(P) for P in layout.particles])}
+            "holes": centroids(layout.particles)}
 
 
-def fill(layout: Layout, field: SizeField, max_elements: int, rule: str) -> NDArray:
-    """Steiner points of a quality, size-bounded ``triangle`` mesh of the layout.
+def fill(layout: Layout, field: SizeField, max_elements: int, rule: str
+         ) -> tuple[NDArray, Triangulation]:
+    """Steiner points of a quality, size-bounded ``triangle`` mesh of the layout,
+    and that mesh (the constrained Delaunay triangulation of the layout with them).
 
-    Raises ValueError (naming ``rule``) when the size field would need more
-    than ``max_elements`` triangles.
+    A triangle's size is the mean of the graded size at its vertices; each
+    refinement keeps the vertices before it (``triangle``'s ``r`` switch), so
+    only new vertices are evaluated. Refinement stops when at most
+    :data:`OVERSIZE` of the triangles exceed their area bound. Raises ValueError
+    (naming ``rule``) when the size field would need more than ``max_elements``
+    triangles.
     """
     data = _pslg(layout)
     n0 = data["vertices"].shape[0]
     switches = f"pq{fixed_point(MIN_ANGLE)}YQS{int(max_elements)}"
     out = triangle.triangulate(data, switches)
+    known, hv = np.zeros((0, 2)), np.zeros(0)
     for _ in range(12):
         p, t = out["vertices"].T, out["triangles"].T
-        h = field.grade(p[:, t].mean(axis=1))
+        k = known.shape[0]
+        if k > p.shape[1] or not np.array_equal(out["vertices"][:k], known):
+            k, hv = 0, np.zeros(0)
+        hv = np.concatenate([hv, field.grade(p[:, k:])])
+        known = out["vertices"]
+        h = hv[t].mean(axis=0)
         bound = AREA_FACTOR * np.sqrt(3.0) / 4.0 * h * h
         area = np.abs(signed_areas(p, t))
         estimate = float(np.sum(np.maximum(area / bound, 1.0)))
@@ -339,19 +396,25 @@ def fill(layout: Layout, field: SizeField, max_elements: int, rule: str) -> NDAr
                              f"triangles, more than max_elements = {max_elements}; use a "
                              "larger delta_l or sigma, or raise max_elements")
         over = area > bound * (1.0 + 1e-9)
-        if not np.any(over):
+        if np.sum(over) <= OVERSIZE * over.size:
             break
         data = {"vertices": out["vertices"], "triangles": out["triangles"],
                 "segments": out["segments"], "segment_markers": out["segment_markers"],
                 "holes": data["holes"], "triangle_max_area": np.where(over, bound, -1.0)[:, None]}
         out = triangle.triangulate(data, "r" + switches + "a")
-    return np.ascontiguousarray(out["vertices"][n0:].T)
+    tri = Triangulation(points=np.ascontiguousarray(out["vertices"].T),
+                        t=out["triangles"].T.astype(np.int64),
+                        segments=out["segments"].T.astype(np.int64),
+                        markers=out["segment_markers"].ravel().astype(np.int64))
+    return np.ascontiguousarray(out["vertices"][n0:].T), tri
 
 
-def finish(layout: Layout, field: SizeField, relax_rounds: int) -> tuple[Layout, object]:
+def finish(layout: Layout, field: SizeField, relax_rounds: int,
+           tri: Triangulation | None = None) -> tuple[Layout, Triangulation]:
     """Merge degenerate triangles, optionally relax, repair bad ones (no relaxation
-    between repairs: the first layer is already in place)."""
-    layout, tri = merge_degenerate(layout, field)
+    between repairs: the first layer is already in place); ``tri``: the layout's
+    triangulation if known."""
+    layout, tri = merge_degenerate(layout, field, tri=tri)
     if relax_rounds:
         layout = relax(layout, field, layout.particles, rounds=relax_rounds)
         layout, tri = merge_degenerate(layout, field)
@@ -359,10 +422,13 @@ def finish(layout: Layout, field: SizeField, relax_rounds: int) -> tuple[Layout,
         free, wall, wall_edge = repair_nodes(layout, tri, layout.particles)
         if free.shape[1] + wall.shape[1] == 0:
             break
+        before = (layout.free.shape[1], layout.wall.shape[1])
         layout = replace(layout, free=np.hstack([layout.free, free]),
                          wall=np.hstack([layout.wall, wall]),
                          wall_edge=np.concatenate([layout.wall_edge, wall_edge]))
         layout, tri = merge_degenerate(layout, field)
+        if (layout.free.shape[1], layout.wall.shape[1]) == before:
+            break       # the merge took out as many nodes as the repair put in: no progress
     return layout, tri
 
 
@@ -370,8 +436,8 @@ def _star_quality(p: NDArray[np.float64], t: NDArray[np.int64]) -> float:
     """Worst of (min angle / 20 deg, 3 / aspect) over triangles ``t``; <= 0 if one inverts."""
     if np.any(signed_areas(p, t) <= 0.0):
         return -1.0
-    return float(min(np.min(angles(p, t)) / SAFE_MIN_ANGLE,
-                     np.min(SAFE_MAX_ASPECT / aspect_ratio(p, t))))
+    ang, q = angles_and_aspect(p, t)
+    return float(min(np.min(ang) / SAFE_MIN_ANGLE, np.min(SAFE_MAX_ASPECT / q)))
 
 
 def smooth_bad(tri, first_movable: int, rounds: int = 6) -> bool:
@@ -386,7 +452,8 @@ def smooth_bad(tri, first_movable: int, rounds: int = 6) -> bool:
     """
     p, t = tri.points, tri.t
     for _ in range(rounds):
-        bad = (angles(p, t).min(axis=0) < SAFE_MIN_ANGLE) | (aspect_ratio(p, t) > SAFE_MAX_ASPECT)
+        ang, q = angles_and_aspect(p, t)
+        bad = (ang.min(axis=0) < SAFE_MIN_ANGLE) | (q > SAFE_MAX_ASPECT)
         if not np.any(bad):
             return False
         nodes = np.unique(t[:, bad])
@@ -437,6 +504,8 @@ def joining_edges(layout: Layout, t: NDArray[np.int64], n_points: int
     outline and the wall), and the components of their ends ``(2, E)``."""
     comp = boundary_component(layout, n_points)
     e = np.sort(np.hstack([t[[0, 1]], t[[1, 2]], t[[2, 0]]]), axis=0)
+    c = comp[e]
+    e = e[:, (c[0] >= 0) & (c[1] >= 0) & (c[0] != c[1])]
     e = np.unique(e[0] * n_points + e[1])
     e = np.vstack([e // n_points, e % n_points])
     c = comp[e]
@@ -515,11 +584,13 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
         raise ValueError(f"{rule}: {wall.shape[1]} wall nodes alone exceed max_elements = "
                          f"{max_elements}; use a larger delta_l or raise max_elements")
     nd = D.shape[1]
-    layout = Layout(domain=D, edge_names=names, particles=outlines, wall=wall,
+    split, vertices = split_gap_edges(D, outlines, field)
+    layout = Layout(domain=D, edge_names=names, particles=split, wall=wall,
                     wall_edge=wall_edge, free=np.zeros((2, 0)),
-                    fixed=layer_nodes(D, outlines, field), n_wall_fixed=wall.shape[1] - nd)
-    layout = replace(layout, free=fill(layout, field, max_elements, rule))
-    layout, tri = finish(layout, field, relax_rounds)
+                    fixed=layer_nodes(D, split, field), n_wall_fixed=wall.shape[1] - nd)
+    free, tri = fill(layout, field, max_elements, rule)
+    layout = replace(layout, free=free)
+    layout, tri = finish(layout, field, relax_rounds, None if relax_rounds else tri)
     for _ in range(SPLIT_ROUNDS):
         e, c = joining_edges(layout, tri.t, tri.points.shape[1])
         if e.shape[1] == 0:
@@ -547,4 +618,4 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
     recipe = Recipe("field", domain, tuple(outlines),
                     dict(sigma=sigma, delta_l=delta_l, max_elements=max_elements,
                          relax_rounds=relax_rounds))
-    return to_body_fitted(tri, layout, recipe)
+    return to_body_fitted(tri, layout, recipe, outline_vertices=vertices)

@@ -145,6 +145,23 @@ def centroid(V: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.array([np.sum((x + xn) * c), np.sum((y + yn) * c)]) / (6.0 * A)
 
 
+def centroids(outlines: Sequence[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """Area centroids of many polygons at once, ``(K, 2)`` (:func:`centroid` of each)."""
+    if not len(outlines):
+        return np.zeros((0, 2))
+    counts = np.array([P.shape[1] for P in outlines])
+    X = np.hstack(outlines)
+    start = np.cumsum(counts) - counts
+    nxt = np.arange(X.shape[1]) + 1
+    nxt[start + counts - 1] = start
+    x, y = X
+    xn, yn = x[nxt], y[nxt]
+    c = x * yn - xn * y
+    A = 0.5 * np.add.reduceat(c, start)
+    return np.column_stack([np.add.reduceat((x + xn) * c, start),
+                            np.add.reduceat((y + yn) * c, start)]) / (6.0 * A[:, None])
+
+
 def edge_distance(V: NDArray[np.float64], x: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     """Signed distance of points to a convex outline's edge lines.
 
@@ -203,23 +220,31 @@ MIN_RELATIVE_SIZE = 1e-5
 def check_layout(D: NDArray[np.float64], particles: Sequence[NDArray[np.float64]]) -> None:
     """Raise ValueError if a particle leaves the domain or two particles overlap."""
     size = float(np.max(np.ptp(D, axis=1)))
-    for i, P in enumerate(particles):
-        out = np.flatnonzero(~inside(D, P))
+    if not len(particles):
+        return
+    counts = np.array([P.shape[1] for P in particles])
+    start = np.cumsum(counts) - counts
+    X = np.hstack(particles)
+    out = ~inside(D, X)
+    extent = np.maximum(*(np.maximum.reduceat(X, start, axis=1)
+                          - np.minimum.reduceat(X, start, axis=1)))
+    bad = np.logical_or.reduceat(out, start) | (extent < MIN_RELATIVE_SIZE * size)
+    if np.any(bad):     # the first particle in error, as a loop over them would find it
+        i = int(np.argmax(bad))
+        P = particles[i]
+        out = np.flatnonzero(out[start[i]:start[i] + counts[i]])
         if out.size:
             raise ValueError(f"particles[{i}]: vertex {out[0]} at ({P[0, out[0]]:g}, "
                              f"{P[1, out[0]]:g}) is not strictly inside the domain")
-        extent = float(np.max(np.ptp(P, axis=1)))
-        if extent < MIN_RELATIVE_SIZE * size:
-            raise ValueError(f"particles[{i}]: extent {extent:.3g} is below "
-                             f"{MIN_RELATIVE_SIZE:g} x the domain size {size:.3g}; such a "
-                             "particle cannot be meshed (round-off); must be larger")
+        raise ValueError(f"particles[{i}]: extent {extent[i]:.3g} is below "
+                         f"{MIN_RELATIVE_SIZE:g} x the domain size {size:.3g}; such a "
+                         "particle cannot be meshed (round-off); must be larger")
     if len(particles) < 2:
         return
     from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
 
-    C = np.array([centroid(P) for P in particles])
-    R = np.array([np.max(np.hypot(*(P - c[:, None]))) for P, c in zip(particles, C,
-                                                                     strict=True)])
+    C = centroids(particles)
+    R = np.maximum.reduceat(np.hypot(*(X - np.repeat(C.T, counts, axis=1))), start)
     for i, j in sorted(cKDTree(C).query_pairs(2.0 * float(R.max()))):
         if np.hypot(*(C[i] - C[j])) < R[i] + R[j] and polygons_overlap(particles[i],
                                                                       particles[j]):

@@ -23,7 +23,7 @@ import numpy as np
 import triangle
 from numpy.typing import NDArray
 
-from .geometry import centroid
+from .geometry import centroids
 
 INTERIOR_MARKER = 1
 """Segment marker of interior constraint segments (a group's transition)."""
@@ -124,12 +124,15 @@ def boundary_segments(layout: Layout):
     segs, marks = wall_segments(layout)
     off = layout.n_wall
     nd = layout.n_corners
-    for p, P in enumerate(layout.particles):
-        k = np.arange(P.shape[1])
-        segs = np.vstack([segs, np.column_stack([off + k, off + np.roll(k, -1)])])
-        marks = np.append(marks, np.full(k.size, 2 + nd + p))
-        off += P.shape[1]
-    return segs, marks, off
+    counts = np.array([P.shape[1] for P in layout.particles], dtype=np.int64)
+    if counts.size:
+        start = np.repeat(np.cumsum(counts) - counts, counts)
+        k = np.arange(int(counts.sum()))
+        nxt = np.where(k + 1 - start == np.repeat(counts, counts), start, k + 1)
+        segs = np.vstack([segs, np.column_stack([off + k, off + nxt])])
+        marks = np.append(marks, 2 + nd + np.repeat(np.arange(counts.size), counts))
+    return segs, marks, off + int(counts.sum())
+
 
 def triangulate(layout: Layout, quality: str = "") -> Triangulation:
     """Constrained Delaunay triangulation of a layout.
@@ -158,7 +161,7 @@ def triangulate(layout: Layout, quality: str = "") -> Triangulation:
         marks = np.append(marks, np.full(layout.fixed_segments.shape[0], INTERIOR_MARKER))
     data = {"vertices": pts.T, "segments": segs, "segment_markers": marks[:, None]}
     if layout.particles:
-        data["holes"] = np.array([centroid(P) for P in layout.particles])
+        data["holes"] = centroids(layout.particles)
     out = triangle.triangulate(data, "pQ" + quality)
     if not quality and out["vertices"].shape[0] != pts.shape[1]:
         raise RuntimeError("triangle inserted Steiner points: constraints cross "

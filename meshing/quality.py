@@ -28,27 +28,41 @@ def signed_areas(p: NDArray[np.float64], t: NDArray[np.int64]) -> NDArray[np.flo
 
 def edge_lengths(p: NDArray[np.float64], t: NDArray[np.int64]) -> NDArray[np.float64]:
     """Edge lengths ``(3, T)``; row ``k`` is the edge opposite vertex ``k``."""
-    return np.vstack([np.hypot(*(p[:, t[(k + 2) % 3]] - p[:, t[(k + 1) % 3]]))
-                      for k in range(3)])
+    q = p[:, t]                                             # (2, 3, T)
+    d = q[:, [2, 0, 1]] - q[:, [1, 2, 0]]
+    return np.hypot(d[0], d[1])
 
 
-def angles(p: NDArray[np.float64], t: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Interior angles in degrees ``(3, T)``; row ``k`` at vertex ``k``."""
-    L = edge_lengths(p, t)
+def _angles(L: NDArray[np.float64]) -> NDArray[np.float64]:
     a, b, c = L, np.roll(L, -1, axis=0), np.roll(L, -2, axis=0)
     cosv = np.clip((b * b + c * c - a * a) / np.maximum(2.0 * b * c, 1e-300), -1.0, 1.0)
     return np.degrees(np.arccos(cosv))
 
 
-def aspect_ratio(p: NDArray[np.float64], t: NDArray[np.int64]) -> NDArray[np.float64]:
-    """``R / (2 r)`` per triangle ``(T,)``; ``inf`` for zero or negative area."""
-    a, b, c = edge_lengths(p, t)
+def _aspect(L: NDArray[np.float64], area: NDArray[np.float64]) -> NDArray[np.float64]:
+    a, b, c = L
     s = 0.5 * (a + b + c)
-    area = signed_areas(p, t)
     with np.errstate(divide="ignore", invalid="ignore"):
         # R = abc / (4A), r = A / s  =>  R / (2r) = abc s / (8 A^2)
         q = a * b * c * s / (8.0 * area * area)
     return np.where(area > 0.0, q, np.inf)
+
+
+def angles(p: NDArray[np.float64], t: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Interior angles in degrees ``(3, T)``; row ``k`` at vertex ``k``."""
+    return _angles(edge_lengths(p, t))
+
+
+def aspect_ratio(p: NDArray[np.float64], t: NDArray[np.int64]) -> NDArray[np.float64]:
+    """``R / (2 r)`` per triangle ``(T,)``; ``inf`` for zero or negative area."""
+    return _aspect(edge_lengths(p, t), signed_areas(p, t))
+
+
+def angles_and_aspect(p: NDArray[np.float64], t: NDArray[np.int64]
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`angles` and :func:`aspect_ratio` from one pass over the edges."""
+    L = edge_lengths(p, t)
+    return _angles(L), _aspect(L, signed_areas(p, t))
 
 
 @dataclass(frozen=True)
@@ -81,10 +95,11 @@ def triangle_stats(p: NDArray[np.float64], t: NDArray[np.int64]) -> MeshStats:
     used = np.unique(t)
     e = np.sort(np.hstack([t[[0, 1]], t[[1, 2]], t[[2, 0]]]), axis=0)
     n_edges = np.unique(e[0] * (p.shape[1] + 1) + e[1]).size
-    ang = angles(p, t)
-    q = aspect_ratio(p, t)
-    area = np.abs(signed_areas(p, t))
     L = edge_lengths(p, t)
+    ang = _angles(L)
+    area = signed_areas(p, t)
+    q = _aspect(L, area)
+    area = np.abs(area)
     finite = q[np.isfinite(q)]
     quant = tuple(float(v) for v in np.quantile(q, [0.0, 0.5, 0.9, 0.99, 1.0],
                                                  method="inverted_cdf"))
@@ -141,4 +156,5 @@ def remesh_needed(mesh, min_angle: float = 15.0, max_aspect: float = 5.0) -> boo
     p, t = np.asarray(mesh.p), np.asarray(mesh.t, dtype=np.int64)
     if np.any(signed_areas(p, t) <= 0.0):
         return True
-    return bool(angles(p, t).min() < min_angle or aspect_ratio(p, t).max() > max_aspect)
+    ang, q = angles_and_aspect(p, t)
+    return bool(ang.min() < min_angle or q.max() > max_aspect)

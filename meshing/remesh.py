@@ -24,7 +24,14 @@ import numpy as np
 import skfem
 from numpy.typing import NDArray
 
-from .geometry import as_particles, centroid, subdivide
+from .geometry import (
+    as_particles,
+    centroid,
+    edge_distance,
+    outline_lengths,
+    project_to_edge,
+    subdivide,
+)
 from .value import BodyFittedMesh, Recipe, build
 
 
@@ -95,11 +102,12 @@ def move_particles(mesh: BodyFittedMesh, particles: object,
     """Move particle outline nodes to new outlines, dragging nearby nodes along.
 
     The particle nodes are placed exactly at the new (subdivided) outline
-    vertices. Interior nodes follow each particle's best-fit rigid motion,
-    weighted by ``w = (1 - d / falloff)^2`` for a distance ``d`` from the old
-    outline (``w = 0`` beyond ``falloff``); wall nodes never move. Connectivity
-    is kept, so elements may degrade or invert: check with
-    :func:`meshing.remesh_needed`.
+    vertices, nodes a field mesh added on an outline edge (in a narrow gap) at
+    the same fraction of the moved edge. Interior nodes follow each particle's
+    best-fit rigid motion, weighted by ``w = (1 - d / falloff)^2`` for a
+    distance ``d`` from the old outline (``w = 0`` beyond ``falloff``); wall
+    nodes never move. Connectivity is kept, so elements may degrade or invert:
+    check with :func:`meshing.remesh_needed`.
 
     Parameters
     ----------
@@ -151,8 +159,15 @@ def move_particles(mesh: BodyFittedMesh, particles: object,
     scale = np.where(weight > 1.0, 1.0 / np.maximum(weight, 1e-300), 1.0)
     free = ~boundary
     q[:, free] += (shift * scale)[:, free]
-    for idx, P in zip(nodes, new, strict=True):
+    for k, (idx, P) in enumerate(zip(nodes, new, strict=True)):
         q[:, idx] = P
+        on = np.unique(skmesh.facets[:, skmesh.boundaries[f"particle{k}"]])
+        extra = np.setdiff1d(on, idx)
+        if extra.size:      # nodes on the old edges: same fraction of the new edge
+            old = p[:, idx]
+            _, e = edge_distance(old, p[:, extra])
+            frac = project_to_edge(old, e, p[:, extra]) / outline_lengths(old)[e]
+            q[:, extra] = P[:, e] + frac * (np.roll(P, -1, axis=1)[:, e] - P[:, e])
     moved = skfem.MeshTri(q, np.asarray(skmesh.t), _boundaries=skmesh._boundaries,
                           _subdomains=skmesh._subdomains, sort_t=False)
     return BodyFittedMesh(mesh=moved, recipe=replace(recipe, particles=tuple(new)),

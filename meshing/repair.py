@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from .cleanup import Sizing, merge_degenerate, near_particles
 from .geometry import inside
 from .pslg import Layout, Triangulation, wall_segments
-from .quality import angles, aspect_ratio, edge_lengths
+from .quality import angles_and_aspect, edge_lengths
 from .relax import relax
 
 SAFE_MIN_ANGLE = 20.0
@@ -75,7 +75,8 @@ def repair_nodes(layout: Layout, tri: Triangulation, keep_out: Sequence[NDArray[
     """
     p, t = tri.points, tri.t
     empty = (np.zeros((2, 0)), np.zeros((2, 0)), np.zeros(0, dtype=np.int64))
-    bad = (angles(p, t).min(axis=0) < SAFE_MIN_ANGLE) | (aspect_ratio(p, t) > SAFE_MAX_ASPECT)
+    ang, q = angles_and_aspect(p, t)
+    bad = (ang.min(axis=0) < SAFE_MIN_ANGLE) | (q > SAFE_MAX_ASPECT)
     if not np.any(bad):
         return empty
     t = t[:, bad]

@@ -17,7 +17,8 @@ from .value import BodyFittedMesh, Recipe
 
 
 def to_body_fitted(tri: Triangulation, layout: Layout, recipe: Recipe | None = None,
-                   subdomains: dict[str, NDArray[np.bool_]] | None = None) -> BodyFittedMesh:
+                   subdomains: dict[str, NDArray[np.bool_]] | None = None,
+                   outline_vertices: list[NDArray[np.int64]] | None = None) -> BodyFittedMesh:
     """Build a ``skfem.MeshTri`` from a triangulation, with its provenance.
 
     Unused nodes (duplicates ``triangle`` skipped) are dropped. The mesh gets
@@ -25,7 +26,10 @@ def to_body_fitted(tri: Triangulation, layout: Layout, recipe: Recipe | None = N
     ``"left"`` for a rectangle) and ``"particle0"``, ... , and optional
     ``subdomains`` (boolean masks over triangles). Returned as a
     :class:`~meshing.value.BodyFittedMesh` with ``recipe`` and the particles'
-    outline vertex indices (``particle_nodes``, in outline order).
+    outline vertex indices (``particle_nodes``, in outline order). When the
+    layout's outlines carry extra nodes on their edges (a field mesh's gaps),
+    ``outline_vertices[k]`` gives the positions of particle ``k``'s own vertices
+    in its layout outline, and only those are ``particle_nodes``.
     """
     used = np.zeros(tri.points.shape[1], dtype=bool)
     used[tri.t.ravel()] = True
@@ -54,7 +58,8 @@ def to_body_fitted(tri: Triangulation, layout: Layout, recipe: Recipe | None = N
     mesh = skfem.MeshTri(p, t, _boundaries=boundaries, _subdomains=subs, sort_t=False)
     off = layout.n_wall
     nodes = []
-    for P in layout.particles:
-        nodes.append(new[off + np.arange(P.shape[1])])
+    for k, P in enumerate(layout.particles):
+        own = np.arange(P.shape[1]) if outline_vertices is None else outline_vertices[k]
+        nodes.append(new[off + own])
         off += P.shape[1]
     return BodyFittedMesh(mesh=mesh, recipe=recipe, particle_nodes=tuple(nodes))
