@@ -78,7 +78,10 @@ class BodyFittedMesh:
     particle_nodes : tuple of ndarray
         One integer array per particle: the vertex indices of its outline in
         ``mesh``, in outline order, so ``mesh.p[:, particle_nodes[k]]`` is the
-        (subdivided) outline of particle ``k``.
+        (subdivided) outline of particle ``k``. A ``"field"`` mesh may add nodes
+        on outline edges along a narrow gap: they lie on the boundary
+        ``"particle{k}"`` (its facets' nodes are all of the particle's nodes),
+        not in ``particle_nodes``.
     """
 
     mesh: skfem.MeshTri

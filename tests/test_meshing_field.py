@@ -187,9 +187,9 @@ def test_gap_between_flat_faces_has_two_elements_across(built):
 
 
 def test_cluster_keeps_a_fine_region_that_hugs_it(built):
-    """Inside the honeycomb the edges stay at the outline's size (measured: mean
-    0.64, largest 1.77 outline edges); 6 mm from the cluster they have grown to 6.2
-    outline edges on average (sigma = 1.2)."""
+    """Inside the honeycomb the edges stay at the outline's size or below (measured:
+    mean 0.31, largest 1.51 outline edges); 6 mm from the cluster they have grown to
+    8.2 outline edges on average (sigma = 1.2)."""
     mesh = built["honeycomb 5 x 5 on the floor"].mesh
     L = np.hypot(*(mesh.p[:, mesh.facets[0]] - mesh.p[:, mesh.facets[1]]))
     mid = 0.5 * (mesh.p[:, mesh.facets[0]] + mesh.p[:, mesh.facets[1]])
