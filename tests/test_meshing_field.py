@@ -253,6 +253,12 @@ def test_bad_input():
                                          r"would give about .* triangles, more than "
                                          r"max_elements = 500; use a larger delta_l"):
         meshing.field_mesh(BOX, parts, delta_l=DL, max_elements=500)
+    a = CORE * R * np.sqrt(3) / 2                  # cores 1 um apart: lined at 0.33 um
+    close = [hexagon((5e-3, 5e-3)), hexagon((5e-3, 5e-3 + 2 * a + 1e-6))]
+    with pytest.raises(ValueError, match=r"^delta_l = 0.0002, sigma = None: 2608 outline nodes "
+                                         r"with the narrow gaps lined exceed max_elements = "
+                                         r"1000; use a larger delta_l"):
+        meshing.field_mesh((0.0, 0.0, 10e-3, 10e-3), close, delta_l=DL, max_elements=1000)
     with pytest.raises(ValueError, match=r"max_elements: must be an integer >= 100"):
         meshing.field_mesh(BOX, parts, delta_l=DL, max_elements=10)
     overlap = [hexagon((5e-3, 5e-3)), hexagon((5.5e-3, 5e-3))]
