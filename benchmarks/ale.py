@@ -11,7 +11,8 @@
 
 Writes ``benchmarks/results/ale.json`` and prints markdown tables.
 
-Usage: ``python benchmarks/ale.py [--repeat 5] [--t-settle 0.7] [--skip-settling]``
+Usage: ``python benchmarks/ale.py [--repeat 5] [--t-settle 0.7] [--skip-settling]
+[--skip-paper] [--tag ale]`` (results in ``benchmarks/results/<tag>.json``)
 """
 
 from __future__ import annotations
@@ -55,12 +56,14 @@ def main():
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--t-settle", type=float, default=0.7)
     ap.add_argument("--skip-settling", action="store_true")
+    ap.add_argument("--skip-paper", action="store_true")
+    ap.add_argument("--tag", default="ale")
     args = ap.parse_args()
     out = {"benchmark": "ale", "machine": platform.platform(), "load_avg_start": os.getloadavg(),
            "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
                                     capture_output=True, text=True).stdout.strip()}
     paper = {}
-    for name in ("single_particle", "single_particle_fine"):
+    for name in () if args.skip_paper else ("single_particle", "single_particle_fine"):
         base = replace(Scene.bundled(name), output_dir=None)
         rec = {m: {"walls": []} for m in ("fixed", "ale")}
         for m in rec:  # warm-up (numba, first-call set-up)
@@ -112,7 +115,7 @@ def main():
             print(f"| {label} | {cases[label]} | {r['max_speed']:.5f} m/s | "
                   f"{r['final_height'] * 1e3:.3f} mm | {r['remeshes']} | {r['wall_s']:.1f} s |")
     out["load_avg_end"] = os.getloadavg()
-    path = ROOT / "benchmarks/results/ale.json"
+    path = ROOT / f"benchmarks/results/{args.tag}.json"
     path.write_text(json.dumps(out, indent=1))
 
 

@@ -97,8 +97,10 @@ REMESH_REASONS = ("travel", "angle", "area", "ahead")
 ALE_MIN_ANGLE = 12.0
 
 #: Moving mesh: remesh when a triangle has shrunk below this fraction of its built area
-#: (now, or at the positions predicted for the end of the next step).
-ALE_MIN_AREA_RATIO = 0.3
+#: (now, or at the positions predicted for the end of the next step). A triangle in a
+#: closing gap shrinks across the gap and stays a good triangle far below 0.3 of its
+#: area, so the angle rule decides there; this bound only catches collapse.
+ALE_MIN_AREA_RATIO = 0.1
 
 #: Moving mesh: the remesh rule looks this many (largest) steps ahead, the poses
 #: extrapolated from the last two steps.
@@ -106,7 +108,7 @@ ALE_LOOK_AHEAD = 2.0
 
 #: Moving mesh: vertices of straight axis-parallel walls slide along them
 #: (:func:`~skfem_granular.coupled.mesh_motion.sliding_wall_nodes`).
-ALE_SLIDE_WALLS = False
+ALE_SLIDE_WALLS = True
 
 #: Moving mesh: the mesh follows the particles' poses from the corrector's iterates until
 #: they change by less than this fraction of the outline edge length.
@@ -411,7 +413,10 @@ class CoupledStepper:
                     return None
             used["q"] = q
             nodes = self.motion.positions(q)
-            space = self.reference_space.moved(nodes)
+            try:
+                space = self.reference_space.moved(nodes)
+            except ValueError as exc:  # an iterate would invert a triangle: a smaller step
+                raise ConvergenceError(f"step at t={self.state.t:.6g}: {exc}") from exc
             wv = a0 * nodes + a1 * nodes_n + (a2 * nodes_prev if a2 != 0.0 else 0.0)
             return space, q[:2], space.vertex_field(wv)
 
