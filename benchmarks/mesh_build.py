@@ -185,7 +185,9 @@ def main(argv=None):
     r, grp = record("group, 100 particles, graded surroundings",
                     lambda: meshing.group_mesh(GROUP_BOX, group()), few, 2.0)
     results.append(r)
-    # remeshing after a move versus building anew with the moved outlines
+    # remeshing after a move versus building anew with the moved outlines (moving
+    # and remeshing need the mesh with its recipe)
+    g24, grp = meshing.build("graded", BOX, [d24]), meshing.build("group", GROUP_BOX, group())
     moved = meshing.move_particles(g24, [moved24])
     r_new = record("graded 24: build anew after move", lambda: meshing.graded_mesh(BOX, [moved24]),
                    rep)[0]
