@@ -1,13 +1,15 @@
 """Moving the mesh with the particles (ALE): outline nodes rigid, the rest a smooth extension.
 
 Each particle's outline vertices move rigidly with the particle, from the pose
-the mesh was built for to the pose now; wall vertices stay; every other vertex
+the mesh was built for to the pose now; wall vertices stay, or slide along
+straight axis-parallel walls (:func:`sliding_wall_nodes`); every other vertex
 follows the harmonic extension of those boundary displacements, a Laplace
 problem for the displacement ``d`` with the element-size stiffening of ALE
 codes: the diffusion coefficient of a triangle is ``1 / area``, so small
 elements near the particles move almost rigidly and the large ones far away
-take up the deformation. The stiffness matrix is factorised once per mesh;
-each motion is then one triangular solve per component.
+take up the deformation. The stiffness matrix is factorised once per mesh (and
+component, when walls slide); each motion is then one triangular solve per
+component.
 
 :func:`mesh_quality` measures what a motion did to the triangles (smallest
 angle, smallest signed-area ratio to the built mesh), for the remeshing rule of
