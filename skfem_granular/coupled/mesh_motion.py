@@ -65,19 +65,20 @@ class MeshMotion:
         #: wall ones sliding along that axis) and the ones it is imposed on
         self.free, self.fixed = [], []
         A = self._stiffness()
-        self._A_fb, self._lu = [], []
         for c in range(2):
             free = ~boundary
             free[slide[c]] = True
             self.free.append(np.flatnonzero(free))
             self.fixed.append(np.flatnonzero(~free))
         self.sliding = slide
-        # one factorisation when no wall slides (both components share it)
-        shared = all(s_.size == 0 for s_ in slide)
-        for c in range(1 if shared else 2):
-            f, b = self.free[c], self.fixed[c]
-            self._A_fb.append(A[f][:, b])
-            self._lu.append(spla.splu(sp.csc_matrix(A[f][:, f])) if f.size else None)
+        self._shared = all(s_.size == 0 for s_ in slide)
+        if self._shared:  # both components share one factorisation
+            f, b = self.free[0], self.fixed[0]
+        else:  # both components in one block-diagonal system: one solve per motion
+            A = sp.block_diag([A, A], format="csr")
+            f = np.concatenate([self.free[0], nv + self.free[1]])
+            b = np.concatenate([self.fixed[0], nv + self.fixed[1]])
+        self._blocks = (f, b, A[f][:, b], spla.splu(sp.csc_matrix(A[f][:, f])) if f.size else None)
         self.area_ref = _signed_areas(self.p_ref, self.t)
 
     def _stiffness(self) -> sp.csr_matrix:
@@ -103,16 +104,15 @@ class MeshMotion:
         for k, n in enumerate(self.particle_nodes):
             d[:, n] = rigid_positions(self.p_ref[:, n], self.poses_ref[:, k], poses[:, k]) \
                 - self.p_ref[:, n]
-        if len(self._lu) == 1:  # no sliding wall: both components at once
-            if self._lu[0] is not None:
-                f, b = self.free[0], self.fixed[0]
-                rhs = -(self._A_fb[0] @ d[:, b].T)
-                d[:, f] = self._lu[0].solve(np.ascontiguousarray(rhs)).T
+        f, b, A_fb, lu = self._blocks
+        if lu is None:
+            return self.p_ref + d
+        if self._shared:  # no sliding wall: both components at once, one factorisation
+            rhs = -(A_fb @ d[:, b].T)
+            d[:, f] = lu.solve(np.ascontiguousarray(rhs)).T
         else:
-            for c in range(2):
-                if self._lu[c] is not None:
-                    f, b = self.free[c], self.fixed[c]
-                    d[c, f] = self._lu[c].solve(-(self._A_fb[c] @ d[c, b]))
+            flat = d.ravel()  # x displacements, then y (a view: d is C-contiguous)
+            flat[f] = lu.solve(-(A_fb @ flat[b]))
         return self.p_ref + d
 
 
