@@ -103,8 +103,9 @@ ALE_MIN_ANGLE = 12.0
 ALE_MIN_AREA_RATIO = 0.1
 
 #: Moving mesh: the remesh rule looks this many (largest) steps ahead, the poses
-#: extrapolated from the last two steps.
-ALE_LOOK_AHEAD = 2.0
+#: extrapolated from the last two steps. One step: a corrector iterate that would still
+#: invert a triangle fails its step (halved) rather than assembling on it.
+ALE_LOOK_AHEAD = 1.0
 
 #: Moving mesh: vertices of straight axis-parallel walls slide along them
 #: (:func:`~skfem_granular.coupled.mesh_motion.sliding_wall_nodes`).
