@@ -17,6 +17,12 @@ and printing a markdown table:
   centreline over time.
 - ``shape`` (check 5): scenes ``settling_rectangle`` (long-axis angle to the
   horizontal) and ``settling_hexagon`` (spurious rotation).
+- ``cost`` (check 7): the accuracy-vs-cost study of check 2's maximum particle
+  Reynolds number and settling time (:mod:`skfem_granular.studies.settling`) over
+  outline resolution, grading, time step, remesh threshold and mesh motion; runs
+  resume from ``out/study_settling[_smoke]/runs``; table to
+  ``benchmarks/results/study_settling.md``, figures to
+  ``docs/figures/study_settling_{pareto,convergence}.png`` (not with ``--smoke``).
 - ``repose`` (check 6, dry): scene ``repose_hexagons`` and its irregular-polygon
   and 24-gon variants: angle of repose fitted to the free surface.
 
@@ -52,7 +58,7 @@ from skfem_granular.validation_data import load
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
-CHECKS = ("terminal", "settling", "dkt", "migration", "shape", "repose")
+CHECKS = ("terminal", "settling", "dkt", "migration", "shape", "repose", "cost")
 
 
 # ------------------------------------------------------------------ scenes
@@ -412,6 +418,34 @@ def check_repose(args) -> dict:
     return out
 
 
+# ------------------------------------------------------------------ check 7
+def check_cost(args) -> dict:
+    from skfem_granular.studies import settling, settling_plots
+
+    out = ROOT / "out" / f"study_settling{'_smoke' if args.smoke else ''}"
+    t0 = time.perf_counter()
+    rows = settling.run(out, smoke=args.smoke, log=lambda m: print("  " + m, flush=True))
+    wall = time.perf_counter() - t0
+    table = settling.table(rows)
+    print("\n" + table)
+    fronts = {q: [r["key"] for r in settling.front(rows, q)] for q in settling.QUANTITIES}
+    result = {"check": 7, "study": "settling", "smoke": args.smoke, "rows": rows,
+              "pareto_front": fronts, "runs_computed": sum(r["computed"] for r in rows),
+              "wall_time_study_s": round(wall, 1),
+              "sum_of_run_wall_times_s": round(sum(r["wall"] for r in rows), 1)}
+    old = RESULTS / f"sedimentation_cost{'_' + args.tag if args.tag else ''}.json"
+    if not result["runs_computed"] and old.exists():  # all resumed: keep the timing
+        result["wall_time_study_s"] = json.loads(old.read_text())["wall_time_study_s"]
+        result["note"] = "records resumed; wall_time_study_s of the run that computed them"
+    if not args.smoke:
+        (RESULTS / "study_settling.md").write_text(
+            "# settling study (issue 14, check 7)\n\n" + table + "\n")
+        figs = ROOT / "docs" / "figures"
+        settling_plots.plot_pareto(rows, figs / "study_settling_pareto.png")
+        settling_plots.plot_convergence(rows, figs / "study_settling_convergence.png")
+    return result
+
+
 # ------------------------------------------------------------------ main
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -432,11 +466,13 @@ def main(argv=None):
     ap.add_argument("--scenes", nargs="+", default=["settling_rectangle", "settling_hexagon"],
                     help="shape: which of the two scenes to run")
     ap.add_argument("--law", help='repose: contact-law overrides as JSON, e.g. \'{"gamma": 1}\'')
+    ap.add_argument("--smoke", action="store_true", help="cost: the smoke grid")
     ap.add_argument("--out", help="output directory of the runs (default: none written)")
     ap.add_argument("--tag", help="suffix of the JSON file name")
     args = ap.parse_args(argv)
     fn = {"terminal": check_terminal, "settling": check_settling, "dkt": check_dkt,
-          "migration": check_migration, "shape": check_shape, "repose": check_repose}[args.check]
+          "migration": check_migration, "shape": check_shape, "repose": check_repose,
+          "cost": check_cost}[args.check]
     t0 = time.perf_counter()
     print(f"sedimentation --check {args.check}", flush=True)
     result = fn(args)
