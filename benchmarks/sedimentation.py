@@ -222,6 +222,16 @@ def check_settling(args) -> dict:
 def check_dkt(args) -> dict:
     """Check 3: drafting, kissing and tumbling times (definitions: docs/sedimentation.md)."""
     scene, notes = configure(Scene.bundled("dkt_two_disks"), args)
+    if args.dkt_x:  # other abscissae of the two centres (the lateral offset)
+        from skfem_granular.dem import Polygon
+
+        parts = []
+        for p, x in zip(scene.particles, args.dkt_x, strict=True):
+            V = p.polygon.vertices
+            parts.append(dataclasses.replace(p, polygon=Polygon(
+                V + np.array([[x - p.polygon.centroid[0]], [0.0]]))))
+        scene = dataclasses.replace(scene, particles=tuple(parts))
+        notes.append(f"centres moved to x = {args.dkt_x} m")
     hist, summary, wall, failure = run_scene(scene)
     r = shadow_radius(scene.particles[0])
     m = measures.kiss_tumble_times(hist.t, hist.x, hist.y, r)
@@ -463,6 +473,8 @@ def main(argv=None):
                     help="terminal: also run the free-settling scenes (long)")
     ap.add_argument("--shape", nargs="+", default=["hexagons", "irregular", "24"],
                     help="repose: grain shapes (hexagons, irregular, or a number of sides)")
+    ap.add_argument("--dkt-x", type=float, nargs=2,
+                    help="dkt: the abscissae (m) of the lower and the upper disk's centres")
     ap.add_argument("--scenes", nargs="+", default=["settling_rectangle", "settling_hexagon"],
                     help="shape: which of the two scenes to run")
     ap.add_argument("--law", help='repose: contact-law overrides as JSON, e.g. \'{"gamma": 1}\'')
