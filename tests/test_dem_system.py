@@ -159,3 +159,28 @@ def test_backends_agree(backend):
     for s in (a, b):
         s.advance(2e-3)
     np.testing.assert_allclose(b.positions, a.positions, rtol=0, atol=1e-12)
+
+
+def test_contact_possible_within_a_step():
+    """Bounding circles (radius R) grown by 3 (|v| dt + a dt^2) + R/10 each: two hexagons
+    4 R apart at rest cannot touch within 1 ms; approaching at 0.5 m/s each (1.5 mm of
+    reach each) they can; a circle 0.05 R above the floor is within reach, one 0.2 R above
+    it at rest is not; an open contact always counts."""
+    box = (0.0, 0.0, 10e-3, 10e-3)
+    apart = DEMSystem.in_box([hexagon(3e-3, 5e-3), hexagon(5e-3, 5e-3)], box, 0.5e-3)
+    assert not apart.contact_possible(1e-3, acceleration=9.81)
+    moving = DEMSystem.in_box([hexagon(3e-3, 5e-3, velocity=(0.5, 0.0)),
+                               hexagon(5e-3, 5e-3, velocity=(-0.5, 0.0))], box, 0.5e-3)
+    assert moving.contact_possible(1e-3)
+    assert not moving.contact_possible(1e-5)  # 15 um of reach each: still 1 mm apart
+    assert DEMSystem.in_box([hexagon(5e-3, 1.05 * R)], box, 0.5e-3).contact_possible(1e-3)
+    above = DEMSystem.in_box([hexagon(5e-3, 1.2 * R)], box, 0.5e-3)
+    assert not above.contact_possible(1e-3, acceleration=9.81)  # reach 0.03 + 0.05 mm
+    above.particles.v[1] = -0.02  # falling at 2 cm/s: 0.06 mm more
+    assert above.contact_possible(1e-3, acceleration=9.81)
+    landing = DEMSystem.in_box([hexagon(5e-3, R * np.sqrt(3) / 2 + 1e-6, velocity=(0, -0.05))],
+                               box, 0.5e-3)
+    while landing.contacts is None or not landing.contacts.i.size:  # down to the floor
+        landing.advance(1e-6)
+        assert landing.t < 1e-4
+    assert landing.contact_possible(1e-12)

@@ -340,3 +340,27 @@ def test_particle_at_reynolds_100_adaptive_coupled_steps(motion):
     assert E[-1] < 0.9 * E[0] and np.max(np.diff(E) / E[:-1]) < 2e-3
     assert 0.05 < h.vx[-1, 0] < h.vx[1, 0]  # slowed by drag, still moving
     assert abs(h.vy[:, 0]).max() < 1e-6 * h.vx[0, 0]  # the wake has not turned it yet
+
+
+def test_dem_substeps_skipped_where_no_contact_can_start(monkeypatch):
+    """The bundled settling disk (contacts on, 1 ms steps) for 0.1 s, far from the walls:
+    no contact can start within a step, so the DEM is not subcycled (0 DEM steps; 4100
+    substeps when it is forced to run every step) and the coupled BDF2 poses are used.
+    Measured over 0.2 s: heights agree to 3.0e-5 of the distance fallen and velocities to
+    7.2e-6 of the largest speed (step-error level), 35 % less wall time."""
+    import skfem_granular.dem.system as dem_system
+
+    def run():
+        scene = replace(Scene.bundled("settling_disk_channel"), output_dir=None)
+        sim = Simulation(replace(scene, time=replace(scene.time, t_end=0.1)))
+        return sim, sim.run(progress=False).history
+
+    skipped, h = run()
+    assert skipped.stepper.contacts_active and skipped.dem.steps == 0
+    monkeypatch.setattr(dem_system.DEMSystem, "contact_possible",
+                        lambda self, dt, acceleration=0.0: True)
+    forced, g = run()
+    assert forced.dem.steps > 1000
+    fallen = abs(g.y[-1, 0] - g.y[0, 0])
+    assert np.abs(h.y - g.y).max() < 1e-4 * fallen
+    assert np.abs(h.vy - g.vy).max() < 2e-5 * np.abs(g.vy).max()

@@ -335,7 +335,10 @@ class CoupledStepper:
         F_ext, T_ext = self.external_forces()
         t0 = time.perf_counter()
         touching = False
-        if self.contacts_active:
+        q_dem = None  # the DEM's poses at the end of the step, when it was advanced
+        # no contact can start within this step: the DEM's substeps would only integrate
+        # the rigid-body motion that the coupled step integrates itself
+        if self.contacts_active and self.dem.contact_possible(step, float(np.hypot(*self.g))):
             F_c, T_c, q_dem = self._dem_predictor(step, s.F_held, s.T_held)
             touching = self._contact_force_acted(xi_n, step, F_ext, F_c, T_c)
             F_ext, T_ext = F_ext + F_c, T_ext + T_c
@@ -352,7 +355,7 @@ class CoupledStepper:
         geometry = None
         if self.ale:
             geometry = self._geometry(a0, a1, a2, q_n, s.q_prev if dt_prev is not None else None,
-                                      q_dem if self.contacts_active else None)
+                                      q_dem)
         moving = {} if geometry is None else {"geometry": geometry}
         imposed = dem.imposed if dem.imposed.any() else None
         if imposed is not None:
@@ -364,7 +367,7 @@ class CoupledStepper:
                                  s.t + step, p_guess=s.p_n, u_guess=u_guess, xi_guess=xi_guess,
                                  **moving)
         xi_new = res["xi"]
-        if self.contacts_active:
+        if q_dem is not None:
             q_new = q_dem
         else:
             q_new = (xi_new - a1 * q_n - (a2 * s.q_prev if dt_prev is not None else 0.0)) / a0

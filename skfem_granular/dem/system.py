@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from . import overlap_numba, pipeline
-from .broadphase import NeighbourList
+from .broadphase import NeighbourList, circle_pairs, wall_pairs
 from .contact_law import ContactHistory, ContactLaw
 from .integrator import BDF2History, correct, predict, stable_time_step
 from .motion import pose_derivative
@@ -18,6 +18,10 @@ __all__ = ["MAX_STEP_RATIO", "DEMSystem"]
 
 #: larger step growth restarts BDF2 with its one-step start (zero stability: w < 1 + sqrt 2)
 MAX_STEP_RATIO = 2.0
+
+#: :meth:`DEMSystem.contact_possible` grows each particle's reach over a step by this
+#: factor on ``|v| dt + a dt^2``.
+CONTACT_TRAVEL_SAFETY = 3.0
 
 
 def _repad(V: np.ndarray, nmax: int) -> np.ndarray:
@@ -316,6 +320,38 @@ class DEMSystem:
         self.contacts = cf
         self.t += dt
         self.steps += 1
+
+    def contact_possible(self, dt: float, acceleration: float = 0.0) -> bool:
+        """Whether two shadows, or a shadow and a wall, could touch within ``dt``.
+
+        Conservative: a contact is open (or a tangential spring held), or the bounding
+        circles grown by :data:`CONTACT_TRAVEL_SAFETY` times how far a particle can
+        travel in ``dt`` (``|v| dt + acceleration dt^2``) plus a tenth of the smallest
+        bounding radius meet each other or a wall. A coupled solver skips the DEM's
+        substeps over a step when this is False.
+
+        Parameters
+        ----------
+        dt : float
+            The step ahead (s).
+        acceleration : float
+            A bound on the particles' accelerations over the step (m/s^2), e.g. that
+            of gravity.
+        """
+        if self.contacts is not None and self.contacts.i.size:
+            return True
+        if len(self.contact_history.keys):
+            return True
+        q, v = self.particles.q, self.particles.v
+        speed = np.hypot(v[0], v[1])
+        radius = self.particles.radius
+        travel = (CONTACT_TRAVEL_SAFETY * (speed * dt + abs(acceleration) * dt * dt)
+                  + 0.1 * float(radius.min()))
+        i, _ = circle_pairs(q[:2], radius, margin=2.0 * float(travel.max()))
+        if i.size:
+            return True
+        i, _ = wall_pairs(q[:2], radius, self.walls.vertices, margin=float(travel.max()))
+        return bool(i.size)
 
     def advance(self, dt_outer: float, max_substep: float | None = None) -> int:
         """Advance by ``dt_outer`` in ``n`` equal substeps ``<= max_substep``.
