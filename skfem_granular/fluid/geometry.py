@@ -159,20 +159,22 @@ class ReferenceBlocks:
 
     def check(self, p: np.ndarray) -> None:
         """Raise when a triangle is inverted (orientation changed) or degenerate at ``p``
-        (one compiled pass; :meth:`maps` gives the maps themselves).
+        (signed determinants only; :meth:`maps` gives the maps themselves).
 
         Raises
         ------
         ValueError
             Naming the triangle and its signed area.
         """
-        from .geometry_numba import smallest_signed_determinant
-
-        det, k = smallest_signed_determinant(np.ascontiguousarray(p, dtype=float), self.t,
-                                             self.orientation)
-        if not det > 0:
+        t = self.t
+        x, y = p[0], p[1]
+        x0, y0 = x[t[0]], y[t[0]]
+        det = ((x[t[1]] - x0) * (y[t[2]] - y0) - (x[t[2]] - x0) * (y[t[1]] - y0))
+        det *= self.orientation
+        if not np.all(det > 0):
+            k = int(np.argmin(det))
             raise ValueError(f"mesh motion: triangle {k} is inverted or degenerate "
-                             f"(signed area {det / 2:.3g}); remesh before moving this far")
+                             f"(signed area {det[k] / 2:.3g}); remesh before moving this far")
 
     def maps(self, p: np.ndarray):
         """``Ainv`` ``(nel, 2, 2)`` and ``|det A|`` ``(nel,)`` of the triangles at ``p``.

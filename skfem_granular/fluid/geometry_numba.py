@@ -126,16 +126,3 @@ def moved_element_data(p, t, orientation, Mhat, S4, E, dref, phi, weights, uu_sl
                 tab[e, 2 * nq + q, i] = At[1, 0] * dref[i, 0, q] + At[1, 1] * dref[i, 1, q]
                 wphi[e, i, q] = phi[i, q] * dxq
 
-
-@lazy_njit  # numba.njit(cache=True) at the first call
-def smallest_signed_determinant(p, t, orientation):  # pragma: no cover (compiled)
-    """``min_e orientation[e] det A_e`` and the triangle where it is reached: positive when no
-    triangle of ``t`` at ``p`` is inverted or degenerate."""
-    smallest, where = np.inf, -1
-    for e in range(t.shape[1]):
-        a, b, c = t[0, e], t[1, e], t[2, e]
-        det = ((p[0, b] - p[0, a]) * (p[1, c] - p[1, a])
-               - (p[0, c] - p[0, a]) * (p[1, b] - p[1, a])) * orientation[e]
-        if det < smallest:
-            smallest, where = det, e
-    return smallest, where
