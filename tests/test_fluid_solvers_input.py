@@ -144,7 +144,7 @@ def test_krylov_iteration_limit_raises(drag_solves):
 
 def test_make_solver_choices():
     assert make_solver("auto", 1000).name == "superlu"
-    assert make_solver("auto", AUTO_KRYLOV_SIZE).name == "superlu"
+    assert make_solver("auto", AUTO_KRYLOV_SIZE).name == "superlu"  # PARDISO only by name
     assert make_solver("auto", AUTO_KRYLOV_SIZE + 1).name == "krylov"
     assert make_solver("krylov").name == "krylov"
     own = SuperLUSolver(delta=0.0)
@@ -171,6 +171,14 @@ def test_pardiso_is_optional():
         a = sg.solve_steady(mesh, sg.Fluid(), bc, solver="superlu")
         b = sg.solve_steady(mesh, sg.Fluid(), bc, solver="pardiso")
         assert np.linalg.norm(a.x - b.x) < 1e-10 * np.linalg.norm(a.x)
+        # Newton: PARDISO analyses two patterns (the Stokes matrix of the first step, the
+        # Jacobian's, with the convection's couplings) and refactorises numerically after
+        pds = make_solver("pardiso")
+        c = sg.solve_steady(mesh, sg.Fluid(1.0, 0.05), bc, True, solver=pds)
+        d = sg.solve_steady(mesh, sg.Fluid(1.0, 0.05), bc, True, solver="superlu")
+        assert c.report.iterations >= 3
+        assert pds.analyses_reused == pds.stats.factorizations - 2
+        assert np.linalg.norm(c.x - d.x) < 1e-9 * np.linalg.norm(d.x)
 
 
 # bad input ---------------------------------------------------------------------------

@@ -33,7 +33,16 @@ AUTO_KRYLOV_SIZE = 250_000
 
 
 class PardisoSolver(SaddlePointSolver):
-    """MKL PARDISO through the optional ``pypardiso`` package."""
+    """MKL PARDISO through the optional ``pypardiso`` package.
+
+    PARDISO's symbolic analysis (fill-reducing ordering, symbolic factorisation) is
+    kept for every later factorisation of the same sparsity pattern, which then runs
+    its numerical phase only: a moving mesh keeps its pattern between remeshes, a fixed
+    mesh for the whole run. Measured on the fluid benchmark's meshes (2 cores): 0.156 s
+    against 0.83 s with the analysis (SuperLU 0.94 s) at 77k unknowns, 1.23 s against
+    5.3 s (SuperLU 9.8 s) at 353k. Ask for it by name (``solver="pardiso"``):
+    :func:`make_solver`'s ``"auto"`` keeps SuperLU for bitwise reproducibility.
+    """
 
     name = "pardiso"
 
@@ -45,13 +54,29 @@ class PardisoSolver(SaddlePointSolver):
                              "(pip install 'skfem-granular[pardiso]')") from exc
         super().__init__()
         self._solver = pypardiso.PyPardisoSolver()
+        self._solver.set_statistical_info_off()
+        self._pattern = None  # (indptr, indices) of the analysed matrix
+        #: factorisations that reused the analysis of the pattern before
+        self.analyses_reused = 0
+
+    def _phase(self, phase: int, A, b):
+        self._solver.set_phase(phase)
+        return self._solver._call_pardiso(A, b)
 
     def _factorize(self, A, **blocks):
-        self._A = sp.csr_matrix(A)
-        self._solver.factorize(self._A)
+        A = sp.csr_matrix(A)
+        A.sort_indices()
+        same = (self._pattern is not None and np.array_equal(A.indptr, self._pattern[0])
+                and np.array_equal(A.indices, self._pattern[1]))
+        # 22: numerical factorisation on the kept analysis; 12: analysis and factorisation
+        self._phase(22 if same else 12, A, np.zeros((A.shape[0], 1)))
+        self.analyses_reused += same
+        self._pattern = (A.indptr.copy(), A.indices.copy())
+        self._A = A
 
     def _solve(self, b):
-        return self._solver.solve(self._A, np.ascontiguousarray(b, dtype=np.float64))
+        x = self._phase(33, self._A, np.ascontiguousarray(b, dtype=np.float64))
+        return np.asarray(x).reshape(b.shape)
 
 
 class KrylovSolver(SaddlePointSolver):
@@ -210,7 +235,11 @@ def make_solver(solver: str | SaddlePointSolver = "auto", size: int = 0) -> Sadd
     ----------
     solver : {"auto", "superlu", "pardiso", "krylov"} or SaddlePointSolver
         ``"auto"`` uses SuperLU up to :data:`AUTO_KRYLOV_SIZE` unknowns and
-        Krylov above. An existing solver object is returned as it is.
+        Krylov above. PARDISO (``"pardiso"``, 3-8x faster refactorisations where
+        ``pypardiso`` is installed) is not chosen by ``"auto"``: MKL's threaded
+        factorisation is not bitwise reproducible across thread counts (a dask worker
+        with one thread differed in the last digit), and checkpoints resume bit for
+        bit. An existing solver object is returned as it is.
     size : int
         Number of unknowns, for ``"auto"``.
     """
