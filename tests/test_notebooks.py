@@ -20,7 +20,7 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
-from skfem_granular.coupled.stepper import ALE_MIN_ANGLE
+from skfem_granular.coupled.ale_rules import ALE_MIN_ANGLE
 
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 CELL_TIMEOUT = 600  # seconds per cell

@@ -73,8 +73,9 @@ import numpy as np
 from .. import timestep as ts
 from ..dem.motion import pose_derivative
 from ..fluid.errors import ConvergenceError
+from .ale_rules import ALE_SLIDE_WALLS, REMESH_REASONS, remesh_reason, step_geometry
 from .build import build_coupling, outline_areas, outline_edge
-from .mesh_motion import MeshMotion, mesh_quality
+from .mesh_motion import MeshMotion
 from .state import CoupledState, StepReport
 from .transfer import lag, transfer_histories
 
@@ -89,32 +90,6 @@ VELOCITY_FLOOR = 1e-6
 
 #: Backward-Euler steps after the last step with a contact force (module notes).
 EULER_AFTER_CONTACT = 2
-
-#: Moving mesh: why a remesh happened (:meth:`CoupledStepper._ale_remesh_reason`).
-REMESH_REASONS = ("travel", "angle", "area", "ahead")
-
-#: Moving mesh: remesh when the smallest angle of the moved mesh falls below this (degrees).
-ALE_MIN_ANGLE = 12.0
-
-#: Moving mesh: remesh when a triangle has shrunk below this fraction of its built area
-#: (now, or at the positions predicted for the end of the next step). A triangle in a
-#: closing gap shrinks across the gap and stays a good triangle far below 0.3 of its
-#: area, so the angle rule decides there; this bound only catches collapse.
-ALE_MIN_AREA_RATIO = 0.1
-
-#: Moving mesh: the remesh rule looks this many (largest) steps ahead, the poses
-#: extrapolated from the last two steps. One step: a corrector iterate that would still
-#: invert a triangle fails its step (halved) rather than assembling on it.
-ALE_LOOK_AHEAD = 1.0
-
-#: Moving mesh: vertices of straight axis-parallel walls slide along them
-#: (:func:`~skfem_granular.coupled.mesh_motion.sliding_wall_nodes`).
-ALE_SLIDE_WALLS = True
-
-#: Moving mesh: the mesh follows the particles' poses from the corrector's iterates until
-#: they change by less than this fraction of the outline edge length.
-ALE_POSE_TOL = 1e-8
-
 
 class SimulationError(RuntimeError):
     """A run stopped early; the history and the last good state were written."""
@@ -170,7 +145,7 @@ class CoupledStepper:
         self.remeshes = self.retries = self.rejections = self.euler_steps = 0
         self._factor_counts = {"factorizations": 0, "jacobian_refreshes": 0}
         self.remesh_energy_ratios = []
-        #: moving mesh: why it was remeshed, ``{reason: count}`` (:meth:`_ale_remesh_reason`)
+        #: moving mesh: why it was remeshed, ``{reason: count}`` (:func:`~.ale_rules.remesh_reason`)
         self.remesh_reasons = dict.fromkeys(REMESH_REASONS, 0)
         self._set_mesh(mesh, centers, angles)
         self.state = CoupledState(u_n=np.zeros(self.space.nu), p_n=None,
@@ -235,7 +210,10 @@ class CoupledStepper:
         dem, sc, s = self.dem, self.scene, self.state
         moved = lag(self.mesh_centers, self.mesh_angles, dem.positions, dem.angles, self.radius)
         if self.ale:
-            reason = self._ale_remesh_reason(moved)
+            dt_ratio = (None if s.dt_prev is None or s.xi_prev is None
+                        else sc.time.dt / s.dt_prev)
+            reason = remesh_reason(self.motion, s.nodes_n, moved, dem.particles.q, s.q_prev,
+                                   dt_ratio, self.radius, self.edge, sc.remesh_travel)
             if reason is None:
                 return
             self.remesh_reasons[reason] += 1
@@ -354,8 +332,10 @@ class CoupledStepper:
         a0, a1, a2 = ts.bdf2_coefficients(step, dt_prev)
         geometry = None
         if self.ale:
-            geometry = self._geometry(a0, a1, a2, q_n, s.q_prev if dt_prev is not None else None,
-                                      q_dem)
+            geometry = step_geometry(self.motion, self.reference_space, s.nodes_n, s.nodes_prev,
+                                     (a0, a1, a2), q_n,
+                                     s.q_prev if dt_prev is not None else None, q_dem,
+                                     self.radius, self.edge, s.t)
         moving = {} if geometry is None else {"geometry": geometry}
         imposed = dem.imposed if dem.imposed.any() else None
         if imposed is not None:
@@ -391,69 +371,6 @@ class CoupledStepper:
         if self.ale:
             new.nodes_n, new.nodes_prev = self.coupling.space.mesh.p, s.nodes_n
         return new, res, acc, q_new, xi_new
-
-    def _geometry(self, a0, a1, a2, q_n, q_prev, q_fixed):
-        """The mesh-motion callback of one ALE step (see ``MonolithicCoupling.step``).
-
-        The poses at the end of the step follow from the rigid velocities by the BDF2
-        formula (or are the DEM's, with contacts); the vertices follow the poses; the
-        mesh velocity is the same BDF2 derivative of the vertex positions.
-        """
-        s = self.state
-        nodes_n = s.nodes_n
-        nodes_prev = nodes_n if s.nodes_prev is None else s.nodes_prev
-        tol = ALE_POSE_TOL * float(self.edge.min())
-        used = {"q": None}
-
-        def geometry(xi):
-            if q_fixed is not None:
-                q = q_fixed
-            else:
-                q = (xi - a1 * q_n - (a2 * q_prev if q_prev is not None else 0.0)) / a0
-            if used["q"] is not None:
-                change = (np.abs(q[:2] - used["q"][:2]).max(axis=0)
-                          + np.abs(q[2] - used["q"][2]) * self.radius)
-                if change.max() <= tol:
-                    return None
-            used["q"] = q
-            nodes = self.motion.positions(q)
-            try:
-                space = self.reference_space.moved(nodes)
-            except ValueError as exc:  # an iterate would invert a triangle: a smaller step
-                raise ConvergenceError(f"step at t={self.state.t:.6g}: {exc}") from exc
-            wv = a0 * nodes + a1 * nodes_n + (a2 * nodes_prev if a2 != 0.0 else 0.0)
-            return space, q[:2], space.vertex_field(wv)
-
-        return geometry
-
-    def _ale_remesh_reason(self, moved) -> str | None:
-        """Moving mesh: why to remesh now, or None. ``"travel"``: a particle has travelled
-        ``remesh_travel`` radii from where its mesh was built; ``"angle"`` / ``"area"``: the
-        moved mesh's smallest angle or area ratio is below :data:`ALE_MIN_ANGLE` /
-        :data:`ALE_MIN_AREA_RATIO`; ``"ahead"``: it would be after the next step."""
-        if np.any(moved > self.scene.remesh_travel * self.radius):
-            return "travel"
-        s, motion = self.state, self.motion
-        if s.nodes_n is None:
-            return None
-        angle, ratio = mesh_quality(s.nodes_n, motion.t, motion.area_ref)
-        if angle < ALE_MIN_ANGLE:
-            return "angle"
-        if ratio < ALE_MIN_AREA_RATIO:
-            return "area"
-        if s.dt_prev is None or s.xi_prev is None:
-            return None
-        # the poses one (largest) step ahead, extrapolated from the last two; checked only
-        # when that step moves a particle by more than a tenth of an outline edge, or the
-        # mesh is already within 1.5x of the thresholds
-        q = self.dem.particles.q
-        ahead = q + ALE_LOOK_AHEAD * (q - s.q_prev) * (self.scene.time.dt / s.dt_prev)
-        reach = lag(q[:2], q[2], ahead[:2], ahead[2], self.radius)
-        if (np.all(reach < 0.1 * self.edge) and angle > 1.5 * ALE_MIN_ANGLE
-                and ratio > 1.5 * ALE_MIN_AREA_RATIO):
-            return None
-        angle, ratio = mesh_quality(motion.positions(ahead), motion.t, motion.area_ref)
-        return "ahead" if angle < ALE_MIN_ANGLE or ratio < ALE_MIN_AREA_RATIO else None
 
     def local_error(self, attempt, step: float) -> float | None:
         """Milne estimate of the local error of an attempted step, relative; None if unknown.
