@@ -102,3 +102,38 @@ def test_navier_stokes_departs_from_stokes_linearly_in_reynolds():
     ratios = np.array(diffs[:-1]) / np.array(diffs[1:])
     np.testing.assert_allclose(ratios, 10.0, rtol=0.02)
     assert 0 < diffs[-1] < 1e-5
+
+
+@pytest.mark.parametrize("moved", [False, True])
+def test_convection_kernel_equals_scikit_fem_forms(moved):
+    """The compiled convection vectors (plain, ALE-relative, Newton action) and the
+    Jacobian matrix equal scikit-fem's assembly of ``forms.convection`` and
+    ``forms.convection_newton`` to round-off, on a mesh and on that mesh moved."""
+    import dataclasses
+
+    from skfem import Basis, ElementTriP2, ElementVector
+
+    from skfem_granular.fluid import forms
+
+    mesh = MeshTri.init_tensor(np.linspace(0, 1, 7), np.linspace(0, 1, 6))
+    space = sg.TaylorHood(mesh)
+    if moved:
+        p = mesh.p.copy()
+        p += 0.04 * np.sin(np.pi * p[0]) * np.sin(np.pi * p[1]) * np.array([[1.0], [0.6]])
+        space = space.moved(p)
+        mesh = dataclasses.replace(mesh, doflocs=p)
+    ub = Basis(mesh, ElementVector(ElementTriP2()), intorder=space.intorder)
+    rng = np.random.default_rng(4)
+    u, w, du = (rng.standard_normal(space.nu) for _ in range(3))
+    kern = space.convection
+
+    def N(wind):
+        return asm(forms.convection, ub, wind=ub.interpolate(wind))
+
+    scale = np.abs(N(u) @ u).max()
+    assert np.abs(kern.residual(u) - N(u) @ u).max() <= 1e-13 * scale
+    assert np.abs(kern.apply_relative(u, w) - N(u - w) @ u).max() <= 1e-13 * scale
+    assert np.abs(kern.apply_relative(u, w, convection=False) + N(w) @ u).max() <= 1e-13 * scale
+    J = asm(forms.convection_newton, ub, wind=ub.interpolate(u))
+    assert np.abs(kern.jacobian_action(u, du) - J @ du).max() <= 1e-13 * scale
+    assert abs(kern.jacobian(u) - J).max() <= 1e-13 * abs(J).max()

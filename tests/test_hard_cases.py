@@ -284,11 +284,15 @@ def test_two_particles_collide_head_on_and_separate(motion, travel):
     Measured (delta_l = 0.1 mm): contact at 8.7 ms, they separate at 1.2 cm/s (energy of
     grains + fluid after / before 0.49), no inverted element on any mesh. The pair's
     horizontal momentum at the end, relative to one grain's, is discretisation error of
-    the unsymmetric mesh: fixed mesh (remesh every 0.05 radii, 11 remeshes) 8.7e-5; moving
-    mesh at its default remesh rule (1 remesh) 1.6e-4. Remeshing the moving mesh every
-    0.05 radii (15 remeshes) gives 9.6e-4: each transfer onto a new unsymmetric mesh adds
-    an asymmetric interpolation error, which converges with the mesh
-    (:func:`test_head_on_pair_momentum_converges_with_the_mesh`).
+    the unsymmetric mesh: moving mesh at its default remesh rule (1 remesh) 1.6e-4.
+    Remeshing the moving mesh every 0.05 radii (15 remeshes) gives 9.6e-4: each transfer
+    onto a new unsymmetric mesh adds an asymmetric interpolation error, which converges
+    with the mesh (:func:`test_head_on_pair_momentum_converges_with_the_mesh`). On the
+    fixed mesh (remesh every 0.05 radii, 11 remeshes) that error depends on round-off:
+    a mesh built for outlines 1e-17 m apart can differ (the histories part at the third
+    remesh), and starting the first grain 1e-15 / 3e-15 / 1e-14 m further right gave
+    6.7e-4 / 6.7e-4 / 6.1e-5 (and 1.0e-4 unperturbed with the numpy convection of
+    4e84a43): hence the bound 1e-3 there.
     """
     sim = _head_on_pair(motion, travel=travel)
     h, meshes = _run_watching_meshes(sim)
@@ -297,7 +301,7 @@ def test_two_particles_collide_head_on_and_separate(motion, travel):
     first, last, ratio = _bounce(h, _energy(sim, h))
     assert 0 < first < last < len(h) - 1
     assert h.vx[-1, 0] < -0.005 and h.vx[-1, 1] > 0.005  # they move apart
-    assert _pair_momentum(h) < 3e-4
+    assert _pair_momentum(h) < (1e-3 if motion == "fixed" else 3e-4)
     assert ratio < 1.0
     gap = sim.dem.core_outlines()[1][0].min() - sim.dem.core_outlines()[0][0].max()
     assert gap > 0  # cores never overlapped

@@ -25,14 +25,6 @@ import scipy.sparse.linalg as spla
 from .._jit import lazy_njit
 
 
-def rigid_positions(points: np.ndarray, pose_ref: np.ndarray, pose: np.ndarray) -> np.ndarray:
-    """Material points ``(2, n)`` of a rigid body moved from ``pose_ref`` to ``pose``
-    (both ``(x, y, angle)``)."""
-    c, s = np.cos(pose[2] - pose_ref[2]), np.sin(pose[2] - pose_ref[2])
-    r = points - pose_ref[:2, None]
-    return pose[:2, None] + np.array([c * r[0] - s * r[1], s * r[0] + c * r[1]])
-
-
 class MeshMotion:
     """Vertex positions of a mesh for the particles' current poses.
 
@@ -54,6 +46,11 @@ class MeshMotion:
         self.t = mesh.t
         self.poses_ref = np.array(poses_ref, dtype=float).reshape(3, -1)
         self.particle_nodes = [np.asarray(n, dtype=np.int64) for n in particle_nodes]
+        # all outline vertices at once: which particle each belongs to, and its arm there
+        self._outline = np.concatenate(self.particle_nodes or [np.zeros(0, dtype=np.int64)])
+        self._owner = np.repeat(np.arange(len(self.particle_nodes)),
+                                [n.size for n in self.particle_nodes])
+        self._arm = self.p_ref[:, self._outline] - self.poses_ref[:2, self._owner]
         nv = self.p_ref.shape[1]
         boundary = np.zeros(nv, dtype=bool)
         boundary[mesh.boundary_nodes()] = True
@@ -101,9 +98,11 @@ class MeshMotion:
         """Vertex positions ``(2, nv)`` with every particle at ``poses`` ``(3, K)``."""
         poses = np.asarray(poses, dtype=float)
         d = np.zeros_like(self.p_ref)
-        for k, n in enumerate(self.particle_nodes):
-            d[:, n] = rigid_positions(self.p_ref[:, n], self.poses_ref[:, k], poses[:, k]) \
-                - self.p_ref[:, n]
+        n, k, r = self._outline, self._owner, self._arm  # every outline moved rigidly
+        turn = poses[2, k] - self.poses_ref[2, k]
+        c, s = np.cos(turn), np.sin(turn)
+        d[0, n] = poses[0, k] + (c * r[0] - s * r[1]) - self.p_ref[0, n]
+        d[1, n] = poses[1, k] + (s * r[0] + c * r[1]) - self.p_ref[1, n]
         f, b, A_fb, lu = self._blocks
         if lu is None:
             return self.p_ref + d

@@ -3,9 +3,10 @@
 scikit-fem's generic ``asm`` re-evaluates basis functions on every call. The
 convection term is the only state-dependent block of the Navier-Stokes
 system, so :class:`ConvectionKernel` keeps the P2 basis values, gradients and
-quadrature weights per element and evaluates ``N(a) b`` vectors, the Newton
-Jacobian's action and the Jacobian matrix itself with ``numpy.einsum`` into a
-fixed sparsity pattern. The results equal the forms
+quadrature weights per element and evaluates ``N(a) b`` vectors and the Newton
+Jacobian's action in one compiled pass over the triangles
+(:mod:`~skfem_granular.fluid.convection_numba`), and the Jacobian matrix itself
+with batched ``numpy.matmul`` into a fixed sparsity pattern. The results equal the forms
 :data:`~skfem_granular.fluid.forms.convection` and
 :data:`~skfem_granular.fluid.forms.convection_newton` (tested).
 """
@@ -56,7 +57,7 @@ class ConvectionKernel:
             [self.phi.transpose(1, 2, 0), self.dphi[:, 0].transpose(1, 2, 0),
              self.dphi[:, 1].transpose(1, 2, 0)], axis=1))  # (nel, 3 nq, 6)
         self._wphi = np.ascontiguousarray((self.phi * self.dx).transpose(1, 0, 2))  # (nel, 6, nq)
-        self._scatter_idx = (2 * self.edofs.T[:, :, None] + np.arange(2)).ravel()  # (nel, 6, 2)
+        self._edofs_e = np.ascontiguousarray(self.edofs.T, dtype=np.int64)  # (nel, 6)
         self._jac_tables = None  # built on the first jacobian() call
 
     def with_tables(self, tab: np.ndarray, wphi: np.ndarray) -> ConvectionKernel:
@@ -68,7 +69,7 @@ class ConvectionKernel:
         new = copy.copy(self)
         new._tab, new._wphi = tab, wphi
         new.dphi = new.dx = None  # the reference mesh's: not those of the moved one
-        new._jac_tables = new._mesh_wind = None
+        new._jac_tables = None
         return new
 
     def _jacobian_tables(self):
@@ -90,55 +91,32 @@ class ConvectionKernel:
             self._jac_tables = (W, dphix, dphiy, slot)
         return self._jac_tables
 
-    def _fields(self, a: np.ndarray):
-        """Values ``(2, nel, nq)`` and gradients ``(2, 2, nel, nq)`` of P2 field ``a``."""
-        F = self._element_fields(a)
-        nq = self._nq
-        val = F[:, :nq].transpose(2, 0, 1)
-        grd = np.stack([F[:, nq:2 * nq], F[:, 2 * nq:]]).transpose(3, 0, 1, 2)
-        return val, grd
-
     def _element_fields(self, a: np.ndarray) -> np.ndarray:
         """``(nel, 3 nq, 2)``: value, x- and y-derivative of both components of ``a``."""
         A = a.reshape(-1, 2)[self.edofs.T]  # (nel, 6, 2)
         return np.matmul(self._tab, A)
 
-    def _advect(self, F_wind: np.ndarray, F_field: np.ndarray) -> np.ndarray:
-        """``(w . grad) b`` at the quadrature points, ``(nel, nq, 2)``."""
-        nq = self._nq
-        w = F_wind[:, :nq]
-        return F_field[:, nq:2 * nq] * w[:, :, 0:1] + F_field[:, 2 * nq:] * w[:, :, 1:2]
-
-    def _scatter(self, local: np.ndarray) -> np.ndarray:
-        """Sum element vectors ``(nel, 6, 2)`` into a global vector."""
-        return np.bincount(self._scatter_idx, weights=local.ravel(), minlength=self.nu)
-
-    def _test(self, adv: np.ndarray) -> np.ndarray:
-        """Global vector of ``(adv, v_i)`` for ``adv`` ``(nel, nq, 2)`` at the quadrature points."""
-        return self._scatter(np.matmul(self._wphi, adv))
-
     def apply(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vector of ``((a . grad) b, v_i)`` for all test functions ``v_i``."""
-        Fa = self._element_fields(a)
-        Fb = Fa if b is a else self._element_fields(b)
-        return self._test(self._advect(Fa, Fb))
+        return self._vector(a, 1.0, a, 0.0, b)
+
+    def _vector(self, a, ca, w, cw, b) -> np.ndarray:
+        """``(((ca a - cw w) . grad) b, v_i)``, one compiled pass
+        (:func:`~skfem_granular.fluid.convection_numba.convection_vector`)."""
+        from .convection_numba import convection_vector
+
+        out = np.zeros(self.nu)
+        convection_vector(np.ascontiguousarray(a, dtype=float), float(ca),
+                          np.ascontiguousarray(w, dtype=float), float(cw),
+                          np.ascontiguousarray(b, dtype=float), self._edofs_e, self._tab,
+                          self._wphi, out)
+        return out
 
     def apply_relative(self, u: np.ndarray, w: np.ndarray, convection: bool = True
                        ) -> np.ndarray:
         """``(((u - w) . grad) u, v_i)`` (``convection``) or ``((-w . grad) u, v_i)``: the ALE
-        convection of ``u`` on a mesh moving with velocity ``w``.
-
-        The element fields of ``w`` are kept between calls with the same array ``w`` (one
-        mesh velocity per step, many iterates ``u``); the wind's fields are those of ``u``
-        minus those of ``w`` (linear in the DOFs).
-        """
-        cached = getattr(self, "_mesh_wind", None)
-        if cached is None or cached[0] is not w:
-            cached = (w, self._element_fields(w))
-            self._mesh_wind = cached
-        Fu = self._element_fields(u)
-        wind = Fu - cached[1] if convection else -cached[1]
-        return self._test(self._advect(wind, Fu))
+        convection of ``u`` on a mesh moving with velocity ``w``."""
+        return self._vector(u, 1.0 if convection else 0.0, w, 1.0, u)
 
     def residual(self, u: np.ndarray) -> np.ndarray:
         """``N(u) u``."""
@@ -146,9 +124,7 @@ class ConvectionKernel:
 
     def jacobian_action(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
         """Newton linearisation at ``u`` applied to ``du``: ``N(u) du + N(du) u``."""
-        Fu = self._element_fields(u)
-        Fd = self._element_fields(du)
-        return self._test(self._advect(Fu, Fd) + self._advect(Fd, Fu))
+        return self.apply(u, du) + self.apply(du, u)
 
     def jacobian(self, u: np.ndarray, newton: bool = True) -> sp.csr_matrix:
         """Matrix of the convection term linearised at ``u`` (see :meth:`jacobian_data`)."""

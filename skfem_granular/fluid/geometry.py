@@ -23,9 +23,25 @@ the moved mesh to round-off (tested).
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 from skfem import ElementTriP1, ElementTriP2
+
+
+def with_data(template: sp.csr_matrix, data: np.ndarray) -> sp.csr_matrix:
+    """A CSR matrix on ``template``'s pattern (its index arrays shared) with values ``data``.
+
+    A shallow copy of ``template`` with ``data`` in place of its values: the blocks of a
+    moved mesh are rebuilt every step on patterns that never change, and scipy's
+    constructor checks the index arrays each time (about 20 us; this takes 4 us).
+    """
+    if data.shape != template.data.shape:
+        raise ValueError(f"data: {data.shape} values for a pattern of {template.data.shape}")
+    out = copy.copy(template)
+    out.data = data
+    return out
 
 
 def affine_maps(p: np.ndarray, t: np.ndarray):
@@ -51,10 +67,20 @@ class _Pattern:
         counts = np.bincount(unique // shape[1], minlength=shape[0])
         self.indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
         self.shape = shape
+        self._template = sp.csr_matrix((np.zeros(self.indices.size), self.indices,
+                                        self.indptr), shape=shape)
 
     def csr(self, data: np.ndarray) -> sp.csr_matrix:
         """The matrix with values ``data`` on this pattern (index arrays shared)."""
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+        return with_data(self._template, data)
+
+    def transposed_csr(self, data: np.ndarray) -> sp.csr_matrix:
+        """The transpose of :meth:`csr` of ``data``, in CSR format (index arrays shared)."""
+        if not hasattr(self, "_transposed_template"):
+            indices, indptr, _ = self.transpose_map()
+            self._transposed_template = sp.csr_matrix(
+                (np.zeros(indices.size), indices, indptr), shape=self.shape[::-1])
+        return with_data(self._transposed_template, data[self.transpose_map()[2]])
 
     def transpose_map(self):
         """``(indices, indptr, order)`` of the transposed pattern: ``A.T.data = A.data[order]``."""

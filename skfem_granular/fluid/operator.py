@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .boundary import DirichletData
+from .geometry import with_data
 from .properties import Fluid
 from .space import TaylorHood
 
@@ -86,14 +87,12 @@ class NavierStokesOperator:
         """
         new = copy.copy(self)
         new.space = space
-        B = space.B  # on the reference pattern: transposes as gathers
-        indices, indptr, order = space.reference_blocks.pu.transpose_map()
-        new._Bt = sp.csr_matrix((B.data[order], indices, indptr), shape=(B.shape[1], B.shape[0]))
+        # on the reference patterns: the transpose as a gather, the scaled K on M's pattern
+        new._Bt = space.reference_blocks.pu.transposed_csr(space.B.data)
         new.__dict__.pop("_B_lower", None)  # built when a matrix is (from B's arrays)
         new.dirichlet = self.dirichlet.moved(space)
-        Kv = space.K(self.viscous)  # same pattern object as the moved M: keep it shared
-        new.K = sp.csr_matrix((self.fluid.viscosity * Kv.data, Kv.indices, Kv.indptr),
-                              shape=Kv.shape)
+        Kv = space.K(self.viscous)
+        new.K = with_data(Kv, self.fluid.viscosity * Kv.data)
         new._velocity_blocks = {}
         new._conv_positions = None
         for cached in ("_reduced_pattern", "_pressure_weights", "_free_pressure_blocks"):
@@ -146,8 +145,7 @@ class NavierStokesOperator:
         if A is None:
             M = self.space.M
             if self.space.reference is not self.space:  # a moved mesh: M, K share a pattern
-                A = sp.csr_matrix(((c_mass * self.fluid.density) * M.data + self.K.data,
-                                   M.indices, M.indptr), shape=M.shape)
+                A = with_data(M, (c_mass * self.fluid.density) * M.data + self.K.data)
             else:
                 A = (c_mass * self.fluid.density) * M + self.K
             if len(self._velocity_blocks) >= 2:
