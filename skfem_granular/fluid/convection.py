@@ -43,7 +43,9 @@ class ConvectionKernel:
         rows = np.broadcast_to(vdofs[:, :, :, None, None], (vdofs.shape[0], nloc, 2, nloc, 2))
         cols = np.broadcast_to(vdofs[:, None, None, :, :], rows.shape)
         keys = rows.ravel().astype(np.int64) * self.nu + cols.ravel()
-        unique, self._slot = np.unique(keys, return_inverse=True)
+        unique, slot = np.unique(keys, return_inverse=True)
+        #: value slot of local entry (e, i, c, j, d) in :attr:`pattern` (int32)
+        self.slot = slot.astype(np.int32)
         self._indices = (unique % self.nu).astype(np.int32)
         counts = np.bincount(unique // self.nu, minlength=self.nu)
         self._indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
@@ -87,7 +89,7 @@ class ConvectionKernel:
                 .reshape(nel, nloc * nloc, nq))
             dphix = np.ascontiguousarray(self._tab[:, nq:2 * nq])
             dphiy = np.ascontiguousarray(self._tab[:, 2 * nq:])
-            slot = self._slot.reshape(nel, nloc, 2, nloc, 2).transpose(0, 1, 3, 2, 4).ravel()
+            slot = self.slot.reshape(nel, nloc, 2, nloc, 2).transpose(0, 1, 3, 2, 4).ravel()
             self._jac_tables = (W, dphix, dphiy, slot)
         return self._jac_tables
 

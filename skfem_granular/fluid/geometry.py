@@ -60,12 +60,18 @@ def affine_maps(p: np.ndarray, t: np.ndarray):
 class _Pattern:
     """Fixed CSR pattern of element matrices scattered by ``(rows, cols)`` ``(nel, a, b)``."""
 
-    def __init__(self, rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]):
-        keys = rows.ravel().astype(np.int64) * shape[1] + cols.ravel()
-        unique, self.slot = np.unique(keys, return_inverse=True)
-        self.indices = (unique % shape[1]).astype(np.int32)
-        counts = np.bincount(unique // shape[1], minlength=shape[0])
-        self.indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
+    def __init__(self, rows: np.ndarray | None, cols: np.ndarray | None,
+                 shape: tuple[int, int], known: tuple | None = None):
+        if known is None:
+            keys = rows.ravel().astype(np.int64) * shape[1] + cols.ravel()
+            unique, slot = np.unique(keys, return_inverse=True)
+            self.indices = (unique % shape[1]).astype(np.int32)
+            counts = np.bincount(unique // shape[1], minlength=shape[0])
+            self.indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
+        else:  # ``(slot, indices, indptr)`` of the same scatter, built elsewhere
+            slot, self.indices, self.indptr = known
+        # 32-bit slots halve what the compiled pass reads (the patterns stay far below 2^31)
+        self.slot = slot.astype(np.int32) if slot.dtype != np.int32 else slot
         self.shape = shape
         self._template = sp.csr_matrix((np.zeros(self.indices.size), self.indices,
                                         self.indptr), shape=shape)
@@ -125,8 +131,10 @@ class ReferenceBlocks:
         pdofs = space.pb.element_dofs.T  # (nel, 3)
         nel = sdofs.shape[0]
         nu, np_ = space.nu, space.np_
-        self.uu = _Pattern(np.broadcast_to(vdofs[:, :, None], (nel, 12, 12)),
-                           np.broadcast_to(vdofs[:, None, :], (nel, 12, 12)), (nu, nu))
+        # the velocity pattern is the convection kernel's: entry (e, i, c, j, d) at row
+        # 2 edof_i + c, column 2 edof_j + d, in the same order
+        conv = space.convection
+        self.uu = _Pattern(None, None, (nu, nu), known=(conv.slot, *conv.pattern))
         self.pu = _Pattern(np.broadcast_to(pdofs[:, :, None], (nel, 3, 12)),
                            np.broadcast_to(vdofs[:, None, :], (nel, 3, 12)), (np_, nu))
 

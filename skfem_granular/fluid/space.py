@@ -97,7 +97,9 @@ class TaylorHood:
         rb.check(p)  # raises on an inverted triangle
         new = object.__new__(TaylorHood)
         d = new.__dict__
-        d.update(mesh=dataclasses.replace(ref.mesh, doflocs=p), intorder=ref.intorder,
+        # the reference's triangles as they are (sorted once when it was built)
+        mesh = dataclasses.replace(ref.mesh, doflocs=p, sort_t=False)
+        d.update(mesh=mesh, intorder=ref.intorder,
                  nu=ref.nu, np_=ref.np_, N=ref.N, reference=ref, reference_blocks=rb)
         for topo in ("component", "all_boundary_dofs", "incidence", "p1_to_p2"):
             d[topo] = getattr(ref, topo)
