@@ -123,3 +123,30 @@ def test_partitioned_with_aitken_relaxation_reaches_monolithic(released, ratio):
     part, _ = _release(space, area, 1000.0 * ratio, cls=PartitionedCoupling, subiterations=30,
                        relaxation="aitken", convection=False)
     assert part == pytest.approx(mono, rel=1e-6)
+
+
+def test_a_dropped_coupling_and_its_space_are_freed_without_the_cycle_collector():
+    """No reference cycle keeps a discretisation alive: after a remesh drops the coupling
+    (its blocks, its factorisation) and the space, reference counting frees them at once
+    (with cycles they waited for Python's cyclic collector: a 2-remesh collapse peaked at
+    504 MB against 362 MB without them)."""
+    import gc
+    import weakref
+
+    mesh = box(0.0, 0.0, 1.0, 1.0, 0.05, hole=regular_polygon(12, 0.2, (0.5, 0.5)))
+    space = sg.TaylorHood(mesh)
+    moved = space.moved(mesh.p + 1e-3 * np.sin(np.pi * mesh.p) * (mesh.p > 0))
+    c = MonolithicCoupling(space, sg.Fluid(1.0, 1.0), {"wall": (0.0, 0.0)},
+                           np.array([[0.5], [0.5]]), [1.0], [1.0])
+    c.step(1e-2, None, np.zeros(space.nu), None, np.zeros((3, 1)), None,
+           np.array([[0.0], [-1.0]]), np.zeros(1), 1e-2)
+    c.move(moved, np.array([[0.5], [0.5]]), np.zeros(space.nu))
+    alive = [weakref.ref(o) for o in (c, c.factors, space, moved, c.op, space.convection)]
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        del c, space, moved
+        assert [r() is None for r in alive] == [True] * len(alive)
+    finally:
+        if enabled:
+            gc.enable()

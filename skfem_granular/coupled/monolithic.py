@@ -37,6 +37,7 @@ coupled Newton Jacobian factorised at the iterate.
 from __future__ import annotations
 
 import time
+import weakref
 
 import numpy as np
 import scipy.sparse as sp
@@ -96,7 +97,11 @@ class MonolithicCoupling(RigidParticles):
         self.max_iterations = max_iterations
         self._build_prolongation()
         self.solver = make_solver(solver, self.nz)
-        self.factors = FactorCache(self.solver, self._coupled_system, self.timings)
+        # the cache holds the assembly through a weak reference: a bound method would make
+        # coupling -> cache -> coupling a cycle, and a remeshed-away coupling (its blocks,
+        # its factorisation) would stay in memory until Python's cyclic collector ran
+        assemble = weakref.WeakMethod(self._coupled_system)
+        self.factors = FactorCache(self.solver, lambda a0: assemble()(a0), self.timings)
         self.reference_op = self.op  # the operator on the mesh as built (moved ones derive)
         self.factorized_on = None  # (vertex positions, centres) of the last factorisation
         self.w_mesh = None  # mesh velocity of a moving mesh (None: fixed mesh)

@@ -54,7 +54,6 @@ class TaylorHood:
         self.nu = self.ub.N
         self.np_ = self.pb.N
         self.N = self.nu + self.np_
-        self.reference = self  # the space whose connectivity and DOF numbering this one shares
         self._viscous_forms = set()  # the viscous forms asked for (see K)
 
     def __getattr__(self, name):
@@ -65,6 +64,14 @@ class TaylorHood:
                                  sb=ub.with_element(ElementTriP2()))
             return self.__dict__[name]
         raise AttributeError(name)
+
+    @property
+    def reference(self) -> TaylorHood:
+        """The space whose connectivity and DOF numbering this one shares: itself, or for a
+        moved space (:meth:`moved`) the space on the mesh as built. (Not stored on the space
+        itself: a self-reference would keep every discretisation, with its blocks, alive
+        until Python's cyclic garbage collector runs, long after a remesh dropped it.)"""
+        return self.__dict__.get("_reference", self)
 
     # the same discretisation on a moved mesh (ALE) --------------------------
     @cached_property
@@ -100,7 +107,7 @@ class TaylorHood:
         # the reference's triangles as they are (sorted once when it was built)
         mesh = dataclasses.replace(ref.mesh, doflocs=p, sort_t=False)
         d.update(mesh=mesh, intorder=ref.intorder,
-                 nu=ref.nu, np_=ref.np_, N=ref.N, reference=ref, reference_blocks=rb)
+                 nu=ref.nu, np_=ref.np_, N=ref.N, _reference=ref, reference_blocks=rb)
         for topo in ("component", "all_boundary_dofs", "incidence", "p1_to_p2"):
             d[topo] = getattr(ref, topo)
         return new
