@@ -137,8 +137,9 @@ class MonolithicCoupling(RigidParticles):
     def _assemble_prolongation(self):
         """``E`` (and ``E^T``) with the rotation's lever arms at the current node positions."""
         if getattr(self, "_lever_slots", None) is not None:  # moved mesh: new lever values only
-            levers = np.concatenate([self.levers(k)[2] for k in self.free_particles]
-                                    or [np.zeros(0)])
+            levers = self.all_levers()
+            if self.imposed.any():  # the free particles' entries, in particle order
+                levers = levers[~self.imposed[self._owner]]
             self.E.data[self._lever_slots[0]] = levers
             self.ET.data[self._lever_slots[1]] = levers
             return

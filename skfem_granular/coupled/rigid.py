@@ -59,6 +59,11 @@ class RigidParticles:
                                        convection=convection)
         self.wall_dirichlet = DirichletData(space, walls) if walls else None
         self.particle_dofs = [space.boundary_dofs(n) for n in names]
+        # every particle's DOFs at once, with their particle and component: the lever arms
+        # and forces of all particles in one vectorised pass (a step needs them for each)
+        self._all_dofs = np.concatenate(self.particle_dofs or [np.zeros(0, dtype=np.int64)])
+        self._owner = np.repeat(np.arange(self.K), [d.size for d in self.particle_dofs])
+        self._all_comp = space.component[self._all_dofs]
         self.timings = {"assembly": 0.0, "factorization": 0.0, "solve": 0.0, "forces": 0.0}
         self._last = None  # right-hand side and solution of the last step (for flow())
 
@@ -66,6 +71,13 @@ class RigidParticles:
         """DOFs of particle ``k``, their components and ``e_z x (x - X)`` at them."""
         d = self.particle_dofs[k]
         return d, self.space.component[d], rigid_lever(self.space, d, self.centers[:, k])
+
+    def all_levers(self) -> np.ndarray:
+        """``e_z x (x - X_k)`` at the DOFs of every particle ``k``, concatenated in particle
+        order (the values :meth:`levers` gives one particle at a time)."""
+        locs = self.space.velocity_doflocs[:, self._all_dofs]
+        X = self.centers[:, self._owner]
+        return np.where(self._all_comp == 0, -(locs[1] - X[1]), locs[0] - X[0])
 
     def imposed_values(self, x: np.ndarray, xi_imposed) -> np.ndarray:
         """Write the rigid velocities ``xi_imposed`` ``(3, K)`` of the imposed particles
@@ -83,14 +95,13 @@ class RigidParticles:
 
     def fluid_forces(self, Rf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Consistent force ``(2, K)`` and torque ``(K,)`` of the fluid on each particle."""
-        F = np.zeros((2, self.K))
-        T = np.zeros(self.K)
-        for k in range(self.K):
-            d, c, lever = self.levers(k)
-            r = Rf[d]
-            F[0, k] = -r[c == 0].sum()
-            F[1, k] = -r[c == 1].sum()
-            T[k] = -(r @ lever)
+        r = Rf[self._all_dofs]
+        x_comp = self._all_comp == 0
+        F = -np.stack([np.bincount(self._owner, weights=np.where(x_comp, r, 0.0),
+                                   minlength=self.K),
+                       np.bincount(self._owner, weights=np.where(x_comp, 0.0, r),
+                                   minlength=self.K)])
+        T = -np.bincount(self._owner, weights=r * self.all_levers(), minlength=self.K)
         return F, T
 
     def flow(self, x):
