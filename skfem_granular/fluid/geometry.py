@@ -137,6 +137,14 @@ class ReferenceBlocks:
         self.uu = _Pattern(None, None, (nu, nu), known=(conv.slot, *conv.pattern))
         self.pu = _Pattern(np.broadcast_to(pdofs[:, :, None], (nel, 3, 12)),
                            np.broadcast_to(vdofs[:, None, :], (nel, 3, 12)), (np_, nu))
+        # the pressure mass matrix is |det A| times the reference one per triangle: its
+        # values are one sparse product with the triangles' determinants
+        self.pp = _Pattern(np.broadcast_to(pdofs[:, :, None], (nel, 3, 3)),
+                           np.broadcast_to(pdofs[:, None, :], (nel, 3, 3)), (np_, np_))
+        Mhat_p = np.einsum("mq,nq,q->mn", psi, psi, W)
+        self._Mp_of_det = sp.csr_matrix(
+            (np.tile(Mhat_p.ravel(), nel), (self.pp.slot, np.repeat(np.arange(nel), 9))),
+            shape=(self.pp.indices.size, nel))
 
     def moved(self, p: np.ndarray, check: bool = True,
               parts=("M", "K_symmetric", "K_laplace", "B", "convection")) -> dict:
@@ -190,6 +198,15 @@ class ReferenceBlocks:
         if "B" in parts:
             out["B"] = pu.csr(B)
         return out
+
+    def pressure_mass(self, p: np.ndarray) -> sp.csr_matrix:
+        """The P1 pressure mass matrix of the mesh at ``p`` (no check for inverted
+        triangles: ``p`` is a moved space's, checked when it was made)."""
+        t = self.t
+        x, y = p[0], p[1]
+        x0, y0 = x[t[0]], y[t[0]]
+        det = ((x[t[1]] - x0) * (y[t[2]] - y0) - (x[t[2]] - x0) * (y[t[1]] - y0))
+        return self.pp.csr(self._Mp_of_det @ (det * self.orientation))
 
     def check(self, p: np.ndarray) -> None:
         """Raise when a triangle is inverted (orientation changed) or degenerate at ``p``

@@ -190,6 +190,8 @@ class TaylorHood:
     @cached_property
     def Mp(self) -> sp.csr_matrix:
         """Pressure mass matrix."""
+        if self.reference is not self:  # a moved mesh: from the triangles' determinants
+            return self.reference_blocks.pressure_mass(self.mesh.p)
         return asm(forms.pressure_mass, self.pb).tocsr()
 
     @cached_property
