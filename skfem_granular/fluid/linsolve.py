@@ -38,15 +38,25 @@ class PardisoSolver(SaddlePointSolver):
     PARDISO's symbolic analysis (fill-reducing ordering, symbolic factorisation) is
     kept for every later factorisation of the same sparsity pattern, which then runs
     its numerical phase only: a moving mesh keeps its pattern between remeshes, a fixed
-    mesh for the whole run. Measured on the fluid benchmark's meshes (2 cores): 0.156 s
-    against 0.83 s with the analysis (SuperLU 0.94 s) at 77k unknowns, 1.23 s against
-    5.3 s (SuperLU 9.8 s) at 353k. Ask for it by name (``solver="pardiso"``):
-    :func:`make_solver`'s ``"auto"`` keeps SuperLU for bitwise reproducibility.
+    mesh for the whole run.
+
+    Bitwise reproducible by default: PARDISO's conditional numerical reproducibility
+    (CNR) mode, ``iparm[33] = PARDISO_CNR_THREADS`` (0-based) with the serial METIS
+    ordering (``iparm[1] = 2``; the parallel one rules CNR out), gives the same bits in
+    every process whatever the thread count (MKL_NUM_THREADS 1 or 2, threadpoolctl
+    limits, a dask worker). PARDISO's own defaults (``reproducible=False``) are not:
+    two processes with two threads each gave different last digits on a 77k-unknown
+    Newton matrix.
+
+    Parameters
+    ----------
+    reproducible : bool
+        CNR mode (default) or PARDISO's own defaults.
     """
 
     name = "pardiso"
 
-    def __init__(self):
+    def __init__(self, reproducible: bool = True):
         try:
             import pypardiso
         except ImportError as exc:
@@ -55,6 +65,9 @@ class PardisoSolver(SaddlePointSolver):
         super().__init__()
         self._solver = pypardiso.PyPardisoSolver()
         self._solver.set_statistical_info_off()
+        self.reproducible = bool(reproducible)
+        if self.reproducible:
+            _pardiso_cnr_iparm(self._solver)
         self._pattern = None  # (indptr, indices) of the analysed matrix
         #: factorisations that reused the analysis of the pattern before
         self.analyses_reused = 0
@@ -77,6 +90,30 @@ class PardisoSolver(SaddlePointSolver):
     def _solve(self, b):
         x = self._phase(33, self._A, np.ascontiguousarray(b, dtype=np.float64))
         return np.asarray(x).reshape(b.shape)
+
+
+#: PARDISO's ``iparm[33]`` in CNR mode: the thread count its reproducible schedule is
+#: laid out for (any number of threads actually running gives the same bits).
+PARDISO_CNR_THREADS = 2
+
+
+def _pardiso_cnr_iparm(solver) -> None:
+    """Fill a ``pypardiso.PyPardisoSolver``'s ``iparm`` for bitwise reproducible runs.
+
+    ``pardisoinit`` writes MKL's defaults for a real nonsymmetric matrix (``mtype`` 11)
+    with ``iparm[0] = 1`` (the values are used as given); then the serial METIS ordering
+    and CNR mode are set.
+    """
+    import ctypes
+
+    init = solver.libmkl.pardisoinit
+    init.restype = None
+    handle = solver.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64))
+    init(handle, ctypes.byref(ctypes.c_int32(solver.mtype)),
+         solver.iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
+    solver.pt[:] = 0
+    solver.iparm[1] = 2  # serial nested dissection (METIS): the parallel one rules out CNR
+    solver.iparm[33] = PARDISO_CNR_THREADS
 
 
 class KrylovSolver(SaddlePointSolver):
