@@ -18,7 +18,7 @@ from helpers import annulus
 
 import skfem_granular as sg
 from skfem_granular.fluid import linsolve
-from skfem_granular.fluid.linsolve import AUTO_PARDISO_SIZE, make_solver
+from skfem_granular.fluid.linsolve import AUTO_KRYLOV_SIZE, AUTO_PARDISO_SIZE, make_solver
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -51,7 +51,7 @@ def test_auto_keeps_superlu_when_pypardiso_does_not_import(monkeypatch):
     monkeypatch.setitem(sys.modules, "pypardiso", None)  # import pypardiso -> ImportError
     monkeypatch.setattr(linsolve, "_PARDISO_AVAILABLE", None)
     assert make_solver("auto", AUTO_PARDISO_SIZE).name == "superlu"
-    assert make_solver("auto", 10 * AUTO_PARDISO_SIZE).name == "krylov"
+    assert make_solver("auto", AUTO_KRYLOV_SIZE + 1).name == "krylov"
     with pytest.raises(ValueError, match="pypardiso"):
         make_solver("pardiso")
 
