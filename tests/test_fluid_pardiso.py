@@ -50,6 +50,7 @@ needs_pardiso = pytest.mark.skipif(not _has_pardiso(), reason="pypardiso not ins
 def test_auto_keeps_superlu_when_pypardiso_does_not_import(monkeypatch):
     monkeypatch.setitem(sys.modules, "pypardiso", None)  # import pypardiso -> ImportError
     monkeypatch.setattr(linsolve, "_PARDISO_AVAILABLE", None)
+    monkeypatch.setattr(linsolve, "_PYPARDISO_TEMPLATE", None)
     assert make_solver("auto", AUTO_PARDISO_SIZE).name == "superlu"
     assert make_solver("auto", AUTO_KRYLOV_SIZE + 1).name == "krylov"
     with pytest.raises(ValueError, match="pypardiso"):

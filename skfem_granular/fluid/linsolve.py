@@ -19,6 +19,8 @@ name.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -61,13 +63,8 @@ class PardisoSolver(SaddlePointSolver):
     name = "pardiso"
 
     def __init__(self, reproducible: bool = True):
-        try:
-            import pypardiso
-        except ImportError as exc:
-            raise ValueError("solver = 'pardiso': needs the optional package pypardiso "
-                             "(pip install 'skfem-granular[pardiso]')") from exc
         super().__init__()
-        self._solver = pypardiso.PyPardisoSolver()
+        self._solver = _pypardiso_solver()
         self._solver.set_statistical_info_off()
         self.reproducible = bool(reproducible)
         if self.reproducible:
@@ -94,6 +91,32 @@ class PardisoSolver(SaddlePointSolver):
     def _solve(self, b):
         x = self._phase(33, self._A, np.ascontiguousarray(b, dtype=np.float64))
         return np.asarray(x).reshape(b.shape)
+
+
+_PYPARDISO_TEMPLATE = None  # the first pypardiso solver, never used to solve
+
+
+def _pypardiso_solver():
+    """A fresh ``pypardiso.PyPardisoSolver``, with MKL looked up once per process.
+
+    pypardiso looks for ``mkl_rt`` in every new solver, here with a recursive glob over
+    the environment's library folders (0.55 s a solver measured); later solvers copy the
+    first one's library handles and get their own PARDISO handle and parameters.
+    """
+    global _PYPARDISO_TEMPLATE
+    if _PYPARDISO_TEMPLATE is None:
+        try:
+            import pypardiso
+        except ImportError as exc:
+            raise ValueError("solver = 'pardiso': needs the optional package pypardiso "
+                             "(pip install 'skfem-granular[pardiso]')") from exc
+        _PYPARDISO_TEMPLATE = pypardiso.PyPardisoSolver()
+    solver = copy.copy(_PYPARDISO_TEMPLATE)
+    solver.pt = np.zeros_like(_PYPARDISO_TEMPLATE.pt)
+    solver.iparm = np.zeros_like(_PYPARDISO_TEMPLATE.iparm)
+    solver.perm = np.zeros_like(_PYPARDISO_TEMPLATE.perm)
+    solver.factorized_A = sp.csr_matrix((0, 0))
+    return solver
 
 
 #: PARDISO's ``iparm[33]`` in CNR mode: the thread count its reproducible schedule is
