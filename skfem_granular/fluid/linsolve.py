@@ -8,15 +8,18 @@ unknowns first (``solver_base``).
   pivoting and the mesh's fill-reducing ordering (``ordering``,
   ``factor_plan``).
 - :class:`PardisoSolver`: Intel MKL PARDISO through ``pypardiso`` (optional
-  extra ``skfem-granular[pardiso]``).
+  extra ``skfem-granular[pardiso]``), bitwise reproducible (MKL's CNR mode).
 - :class:`KrylovSolver`: FGMRES with a block-triangular preconditioner: pyamg
   smoothed aggregation on the velocity block and a Cahouet-Chabard pressure
   Schur complement approximation ``eta Mp^-1 + a0 rho Lp^-1``.
 
-:func:`make_solver` picks one by size (``"auto"``) or by name.
+:func:`make_solver` picks one by size and by what is installed (``"auto"``) or by
+name.
 """
 
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 import scipy.sparse as sp
@@ -25,11 +28,14 @@ import scipy.sparse.linalg as spla
 from .solver_base import SaddlePointSolver, SolverStats
 from .superlu import SuperLUSolver
 
-__all__ = ["AUTO_KRYLOV_SIZE", "KrylovSolver", "PardisoSolver", "SaddlePointSolver",
-           "SolverStats", "SuperLUSolver", "make_solver"]
+__all__ = ["AUTO_KRYLOV_SIZE", "AUTO_PARDISO_SIZE", "KrylovSolver", "PardisoSolver",
+           "SaddlePointSolver", "SolverStats", "SuperLUSolver", "make_solver"]
 
-#: Above this many unknowns ``"auto"`` switches from SuperLU to Krylov.
+#: Above this many unknowns ``"auto"`` switches from SuperLU to Krylov (without pypardiso).
 AUTO_KRYLOV_SIZE = 250_000
+
+#: From this many unknowns on ``"auto"`` takes PARDISO when pypardiso is importable.
+AUTO_PARDISO_SIZE = 60_000
 
 
 class PardisoSolver(SaddlePointSolver):
@@ -38,23 +44,31 @@ class PardisoSolver(SaddlePointSolver):
     PARDISO's symbolic analysis (fill-reducing ordering, symbolic factorisation) is
     kept for every later factorisation of the same sparsity pattern, which then runs
     its numerical phase only: a moving mesh keeps its pattern between remeshes, a fixed
-    mesh for the whole run. Measured on the fluid benchmark's meshes (2 cores): 0.156 s
-    against 0.83 s with the analysis (SuperLU 0.94 s) at 77k unknowns, 1.23 s against
-    5.3 s (SuperLU 9.8 s) at 353k. Ask for it by name (``solver="pardiso"``):
-    :func:`make_solver`'s ``"auto"`` keeps SuperLU for bitwise reproducibility.
+    mesh for the whole run.
+
+    Bitwise reproducible by default: PARDISO's conditional numerical reproducibility
+    (CNR) mode, ``iparm[33] = PARDISO_CNR_THREADS`` (0-based) with the serial METIS
+    ordering (``iparm[1] = 2``; the parallel one rules CNR out), gives the same bits in
+    every process whatever the thread count (MKL_NUM_THREADS 1 or 2, threadpoolctl
+    limits, a dask worker). PARDISO's own defaults (``reproducible=False``) are not:
+    two processes with two threads each gave different last digits on a 77k-unknown
+    Newton matrix.
+
+    Parameters
+    ----------
+    reproducible : bool
+        CNR mode (default) or PARDISO's own defaults.
     """
 
     name = "pardiso"
 
-    def __init__(self):
-        try:
-            import pypardiso
-        except ImportError as exc:
-            raise ValueError("solver = 'pardiso': needs the optional package pypardiso "
-                             "(pip install 'skfem-granular[pardiso]')") from exc
+    def __init__(self, reproducible: bool = True):
         super().__init__()
-        self._solver = pypardiso.PyPardisoSolver()
+        self._solver = _pypardiso_solver()
         self._solver.set_statistical_info_off()
+        self.reproducible = bool(reproducible)
+        if self.reproducible:
+            _pardiso_cnr_iparm(self._solver)
         self._pattern = None  # (indptr, indices) of the analysed matrix
         #: factorisations that reused the analysis of the pattern before
         self.analyses_reused = 0
@@ -77,6 +91,56 @@ class PardisoSolver(SaddlePointSolver):
     def _solve(self, b):
         x = self._phase(33, self._A, np.ascontiguousarray(b, dtype=np.float64))
         return np.asarray(x).reshape(b.shape)
+
+
+_PYPARDISO_TEMPLATE = None  # the first pypardiso solver, never used to solve
+
+
+def _pypardiso_solver():
+    """A fresh ``pypardiso.PyPardisoSolver``, with MKL looked up once per process.
+
+    pypardiso looks for ``mkl_rt`` in every new solver, here with a recursive glob over
+    the environment's library folders (0.55 s a solver measured); later solvers copy the
+    first one's library handles and get their own PARDISO handle and parameters.
+    """
+    global _PYPARDISO_TEMPLATE
+    if _PYPARDISO_TEMPLATE is None:
+        try:
+            import pypardiso
+        except ImportError as exc:
+            raise ValueError("solver = 'pardiso': needs the optional package pypardiso "
+                             "(pip install 'skfem-granular[pardiso]')") from exc
+        _PYPARDISO_TEMPLATE = pypardiso.PyPardisoSolver()
+    solver = copy.copy(_PYPARDISO_TEMPLATE)
+    solver.pt = np.zeros_like(_PYPARDISO_TEMPLATE.pt)
+    solver.iparm = np.zeros_like(_PYPARDISO_TEMPLATE.iparm)
+    solver.perm = np.zeros_like(_PYPARDISO_TEMPLATE.perm)
+    solver.factorized_A = sp.csr_matrix((0, 0))
+    return solver
+
+
+#: PARDISO's ``iparm[33]`` in CNR mode: the thread count its reproducible schedule is
+#: laid out for (any number of threads actually running gives the same bits).
+PARDISO_CNR_THREADS = 2
+
+
+def _pardiso_cnr_iparm(solver) -> None:
+    """Fill a ``pypardiso.PyPardisoSolver``'s ``iparm`` for bitwise reproducible runs.
+
+    ``pardisoinit`` writes MKL's defaults for a real nonsymmetric matrix (``mtype`` 11)
+    with ``iparm[0] = 1`` (the values are used as given); then the serial METIS ordering
+    and CNR mode are set.
+    """
+    import ctypes
+
+    init = solver.libmkl.pardisoinit
+    init.restype = None
+    handle = solver.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64))
+    init(handle, ctypes.byref(ctypes.c_int32(solver.mtype)),
+         solver.iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
+    solver.pt[:] = 0
+    solver.iparm[1] = 2  # serial nested dissection (METIS): the parallel one rules out CNR
+    solver.iparm[33] = PARDISO_CNR_THREADS
 
 
 class KrylovSolver(SaddlePointSolver):
@@ -234,12 +298,18 @@ def make_solver(solver: str | SaddlePointSolver = "auto", size: int = 0) -> Sadd
     Parameters
     ----------
     solver : {"auto", "superlu", "pardiso", "krylov"} or SaddlePointSolver
-        ``"auto"`` uses SuperLU up to :data:`AUTO_KRYLOV_SIZE` unknowns and
-        Krylov above. PARDISO (``"pardiso"``, 3-8x faster refactorisations where
-        ``pypardiso`` is installed) is not chosen by ``"auto"``: MKL's threaded
-        factorisation is not bitwise reproducible across thread counts (a dask worker
-        with one thread differed in the last digit), and checkpoints resume bit for
-        bit. An existing solver object is returned as it is.
+        ``"auto"``: PARDISO (:class:`PardisoSolver`, bitwise reproducible) from
+        :data:`AUTO_PARDISO_SIZE` unknowns on when ``pypardiso`` is importable; else
+        SuperLU up to :data:`AUTO_KRYLOV_SIZE` unknowns and Krylov above. SuperLU is the
+        default that always installs. The rule, measured on reduced BDF2 Newton
+        matrices (2 cores, loaded machine, SuperLU / PARDISO analysis kept / PARDISO
+        first factorisation with its analysis): 72 / 52 / 145 ms at 8k unknowns, 272 /
+        222 / 516 ms at 20k, 1134 / 607 / 2174 ms at 77k, 9.8 / 1.2 / 5.3 s at 353k
+        (earlier run). A pattern factorised once favours SuperLU up to a few 100k
+        unknowns, one factorised again and again (Newton, a fixed or moving mesh
+        between remeshes) PARDISO from a few 10k: at 77k one analysis and one
+        refactorisation cost what two SuperLU factorisations do. An existing solver
+        object is returned as it is.
     size : int
         Number of unknowns, for ``"auto"``.
     """
@@ -249,5 +319,23 @@ def make_solver(solver: str | SaddlePointSolver = "auto", size: int = 0) -> Sadd
         raise ValueError(f"solver = {solver!r}: must be a SaddlePointSolver or one of 'auto', "
                          f"{', '.join(map(repr, SOLVERS))}")
     if solver == "auto":
+        if size >= AUTO_PARDISO_SIZE and pardiso_available():
+            return PardisoSolver()
         solver = "krylov" if size > AUTO_KRYLOV_SIZE else "superlu"
     return SOLVERS[solver]()
+
+
+def pardiso_available() -> bool:
+    """Whether ``pypardiso`` imports and finds MKL (imported on the first call only)."""
+    global _PARDISO_AVAILABLE
+    if _PARDISO_AVAILABLE is None:
+        try:
+            PardisoSolver()
+        except (ValueError, ImportError, OSError):
+            _PARDISO_AVAILABLE = False
+        else:
+            _PARDISO_AVAILABLE = True
+    return _PARDISO_AVAILABLE
+
+
+_PARDISO_AVAILABLE = None

@@ -1,0 +1,97 @@
+"""PARDISO: chosen by ``solver="auto"`` from a size on where installed, bitwise reproducible.
+
+Where ``pypardiso`` is not installed, ``"auto"`` keeps SuperLU (simulated here by an
+import that fails); where it is, PARDISO's solution matches SuperLU's and two fresh
+processes with one and two MKL threads give the same bits (MKL's conditional numerical
+reproducibility mode, ``PardisoSolver``'s default).
+"""
+
+import hashlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import annulus
+
+import skfem_granular as sg
+from skfem_granular.fluid import linsolve
+from skfem_granular.fluid.linsolve import AUTO_KRYLOV_SIZE, AUTO_PARDISO_SIZE, make_solver
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: A Navier-Stokes solve (Newton: two patterns, refactorisations on a kept analysis)
+#: printing the SHA-256 of the solution's bytes; run in fresh processes.
+SCRIPT = """
+import hashlib, sys
+sys.path.insert(0, {tests!r})
+from helpers import annulus
+import skfem_granular as sg
+mesh = annulus(1.0, 2.0, 24, 48, 0.01)
+bc = {{"inner": (1.0, 0.0), "outer": (0.0, 0.0)}}
+flow = sg.solve_steady(mesh, sg.Fluid(1.0, 0.05), bc, True, solver="pardiso")
+print(flow.report.iterations, hashlib.sha256(flow.x.tobytes()).hexdigest())
+"""
+
+
+def _has_pardiso() -> bool:
+    try:
+        import pypardiso  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+needs_pardiso = pytest.mark.skipif(not _has_pardiso(), reason="pypardiso not installed")
+
+
+def test_auto_keeps_superlu_when_pypardiso_does_not_import(monkeypatch):
+    monkeypatch.setitem(sys.modules, "pypardiso", None)  # import pypardiso -> ImportError
+    monkeypatch.setattr(linsolve, "_PARDISO_AVAILABLE", None)
+    monkeypatch.setattr(linsolve, "_PYPARDISO_TEMPLATE", None)
+    assert make_solver("auto", AUTO_PARDISO_SIZE).name == "superlu"
+    assert make_solver("auto", AUTO_KRYLOV_SIZE + 1).name == "krylov"
+    with pytest.raises(ValueError, match="pypardiso"):
+        make_solver("pardiso")
+
+
+@needs_pardiso
+def test_auto_takes_pardiso_from_its_size_on(monkeypatch):
+    monkeypatch.setattr(linsolve, "_PARDISO_AVAILABLE", None)
+    assert make_solver("auto", AUTO_PARDISO_SIZE - 1).name == "superlu"
+    for size in (AUTO_PARDISO_SIZE, 10 * AUTO_PARDISO_SIZE):
+        s = make_solver("auto", size)
+        assert s.name == "pardiso" and s.reproducible
+
+
+@needs_pardiso
+def test_pardiso_matches_superlu_and_repeats_its_bits():
+    mesh = annulus(1.0, 2.0, 24, 48, 0.01)
+    bc = {"inner": (1.0, 0.0), "outer": (0.0, 0.0)}
+    fluid = sg.Fluid(1.0, 0.05)
+    ref = sg.solve_steady(mesh, fluid, bc, True, solver="superlu")
+    runs = [sg.solve_steady(mesh, fluid, bc, True, solver="pardiso") for _ in range(2)]
+    assert ref.report.iterations == runs[0].report.iterations >= 3
+    assert np.linalg.norm(runs[0].x - ref.x) < 1e-10 * np.linalg.norm(ref.x)
+    assert runs[0].x.tobytes() == runs[1].x.tobytes()  # same process, twice
+    stokes = sg.solve_steady(mesh, fluid, bc, solver="pardiso")
+    stokes_ref = sg.solve_steady(mesh, fluid, bc, solver="superlu")
+    assert np.linalg.norm(stokes.x - stokes_ref.x) < 1e-10 * np.linalg.norm(stokes_ref.x)
+
+
+@needs_pardiso
+def test_pardiso_bits_equal_in_fresh_processes_with_one_and_two_threads():
+    code = SCRIPT.format(tests=str(ROOT / "tests"))
+    out = []
+    for threads in ("1", "2"):
+        env = dict(os.environ, MKL_NUM_THREADS=threads, OMP_NUM_THREADS=threads,
+                   PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+        res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                             text=True, timeout=300, check=True)
+        out.append(res.stdout.split())
+    assert out[0] == out[1], out
+    here = sg.solve_steady(annulus(1.0, 2.0, 24, 48, 0.01), sg.Fluid(1.0, 0.05),
+                           {"inner": (1.0, 0.0), "outer": (0.0, 0.0)}, True, solver="pardiso")
+    assert hashlib.sha256(here.x.tobytes()).hexdigest() == out[0][1]
