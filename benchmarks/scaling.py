@@ -15,7 +15,7 @@ Usage::
 
     python benchmarks/scaling.py                        # n = 5, 10, 20 -> results/scaling.json
     python benchmarks/scaling.py --smoke                # n = 2, 3, a few steps (< 1 min)
-    python benchmarks/scaling.py --figure-only          # figure from results/scaling.json
+    python benchmarks/scaling.py --refit                # fits, figure from results/scaling.json
 
 The figure (cost per simulated ms and peak memory against grains, fitted
 slopes, a slope-1 guide) goes to ``docs/figures/scaling.png``.
@@ -62,7 +62,7 @@ RUN_KEYS = ("n", "grains", "t_end", "steps", "warmup_steps", "vertices_initial",
             "euler_steps_at_contacts", "max_contacts", "wall_s", "startup_s", "steady_s",
             "steady_sim_ms", "cost_per_ms_s", "steady_cost_per_ms_s", "phases_s",
             "steady_phases_s", "peak_mb", "loadavg_before", "loadavg_after", "gc_after_remesh",
-    "gc_s")
+    "gc_s", "cpu_s", "steady_cpu_s", "steady_cpu_per_ms_s", "regimes")
 
 
 def scaled_scene(n: int, t_end: float):
@@ -134,6 +134,12 @@ def rss_mb() -> float:
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def cpu_s() -> float:
+    """CPU time (user + system) of this process so far (s)."""
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_utime + u.ru_stime
+
+
 def counts(sim) -> dict:
     """Phase times (s) and solver counters of a running simulation, as they are now.
 
@@ -145,7 +151,7 @@ def counts(sim) -> dict:
     ph = {k: v for k, v in sim.timings.items() if k != "total"}
     ph["refresh"] = REFRESH_S[0]
     ph["solve_exclusive"] = ph.get("solve", 0.0) - REFRESH_S[0]
-    return {"phases": ph, "remeshes": st.remeshes, **st.factor_counts}
+    return {"phases": ph, "remeshes": st.remeshes, "cpu_s": cpu_s(), **st.factor_counts}
 
 
 def mesh_size(sim) -> tuple[int, int]:
@@ -179,7 +185,7 @@ def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = True) 
     from skfem_granular.simulation import Simulation
 
     time_refreshes()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), cpu_s()
     sim = Simulation(scaled_scene(n, t_end))
     v0, d0 = mesh_size(sim)
     steps = {"wall_s": [], "dofs": [], "contacts": [], "remeshes": [], "rss_mb": []}
@@ -212,7 +218,12 @@ def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = True) 
         mark, t_mark, w_mark = end, float(h.t[-1]), t0 + wall
     rec = record(n, sim, wall, wall - (w_mark - t0), (float(h.t[-1]) - t_mark) * 1e3,
                  (mark, end), (v0, d0), steps, warmup)
-    return {**rec, "gc_after_remesh": collect, "gc_s": gc_s}
+    cpu = end["cpu_s"] - c0
+    steady_cpu = end["cpu_s"] - mark["cpu_s"]
+    return {**rec, "gc_after_remesh": collect, "gc_s": gc_s, "cpu_s": cpu,
+            "steady_cpu_s": steady_cpu,
+            "steady_cpu_per_ms_s": steady_cpu / rec["steady_sim_ms"] if rec["steady_sim_ms"] > 0
+            else None}
 
 
 def record(n, sim, wall, steady, steady_ms, marks, initial, steps, warmup) -> dict:
@@ -261,6 +272,30 @@ def run_child(n: int, t_end: float, warmup: int, collect: bool = True) -> dict:
     return rec
 
 
+def regimes(rec: dict) -> dict:
+    """Cost per simulated ms and remeshes before the first contact and from it on.
+
+    From the per-step rows of a record (the steps after the warm-up; the Simulation's
+    construction is not in them). Before the first contact the block sediments; from
+    it on the DEM has contacts and the grains' gaps close (more remeshes).
+    """
+    ps, w = rec["per_step"], rec["warmup_steps"]
+    dt_ms = rec["t_end"] * 1e3 / rec["steps"]
+    first = rec["first_contact_step"] or rec["steps"] + 1
+    out = {}
+    for name, lo, hi in (("sedimenting", w, first - 1), ("contacts", first - 1, rec["steps"])):
+        lo = max(lo, w)
+        n = hi - lo
+        if n <= 0:
+            out[name] = None
+            continue
+        rem = ps["remeshes"][hi - 1] - (ps["remeshes"][lo - 1] if lo > 0 else 0)
+        out[name] = {"steps": n, "sim_ms": n * dt_ms, "wall_s": float(sum(ps["wall_s"][lo:hi])),
+                     "cost_per_ms_s": float(sum(ps["wall_s"][lo:hi])) / (n * dt_ms),
+                     "remeshes": rem, "remeshes_per_ms": rem / (n * dt_ms)}
+    return out
+
+
 def fit_exponent(x, y) -> dict:
     """Least-squares line through ``(log x, log y)``: ``y ~ c x^k``.
 
@@ -290,6 +325,9 @@ def fits(runs: list) -> dict:
         "steady_cost_per_ms_vs_grains": fit_exponent(
             g, [r["steady_cost_per_ms_s"] for r in runs]),
         "steady_cost_per_ms_vs_dofs": fit_exponent(d, [r["steady_cost_per_ms_s"] for r in runs]),
+        **({"steady_cpu_per_ms_vs_grains": fit_exponent(
+            g, [r["steady_cpu_per_ms_s"] for r in runs])}
+           if all(r.get("steady_cpu_per_ms_s") for r in runs) else {}),
         "peak_mb_vs_grains": fit_exponent(g, [r["peak_mb"] for r in runs]),
         "dofs_vs_grains": fit_exponent(g, d),
         "remeshes_vs_grains": fit_exponent(g, [max(r["remeshes"], 0.5) for r in runs]),
@@ -301,6 +339,10 @@ def fits(runs: list) -> dict:
         y = [r["steady_phases_s"].get(k, 0.0) / r["steady_sim_ms"] for r in runs]
         if min(y) > 0:
             out[f"steady_{k}_per_ms_vs_grains"] = fit_exponent(g, y)
+    for k in ("sedimenting", "contacts"):
+        reg = [r["regimes"][k] for r in runs]
+        if all(reg):
+            out[f"{k}_cost_per_ms_vs_grains"] = fit_exponent(g, [x["cost_per_ms_s"] for x in reg])
     return out
 
 
@@ -348,8 +390,9 @@ def table(data: dict) -> str:
     """The Markdown table of the runs (as on the benchmarks page)."""
     head = ("| n | grains | vertices | DOFs (start / end / max) | steps | remeshes (travel / "
             "ahead / angle / area) | factorisations / Jacobian refreshes | halvings | wall s "
-            "(start-up) | s per sim. ms (steady) | peak MB | load before / after |")
-    rows = [head, "|" + "---|" * 12]
+            "(start-up) | s per sim. ms (steady) | CPU s per sim. ms (steady) | peak MB | "
+            "load before / after |")
+    rows = [head, "|" + "---|" * 13]
     for r in data["runs"]:
         rr = r["remesh_reasons"] or {}
         rows.append(
@@ -359,7 +402,8 @@ def table(data: dict) -> str:
             f"{rr.get('angle', 0)} / {rr.get('area', 0)}) | {r['factorizations']} / "
             f"{r['jacobian_refreshes']} | {r['retries']} | {r['wall_s']:.1f} "
             f"({r['startup_s']:.1f}) | {r['cost_per_ms_s']:.3g} "
-            f"({r['steady_cost_per_ms_s'] or float('nan'):.3g}) | {r['peak_mb']:.0f} | "
+            f"({r['steady_cost_per_ms_s'] or float('nan'):.3g}) | "
+            f"{r.get('steady_cpu_per_ms_s') or float('nan'):.3g} | {r['peak_mb']:.0f} | "
             f"{r['loadavg_before'][0]:.2f} / {r['loadavg_after'][0]:.2f} |")
     return "\n".join(rows)
 
@@ -431,7 +475,9 @@ def main(argv=None) -> dict | None:
     ap.add_argument("--out", type=Path, help="results JSON (default results/scaling[_smoke])")
     ap.add_argument("--figure", type=Path, help=f"figure (default {FIGURE.relative_to(ROOT)}; "
                                                 "smoke: none)")
-    ap.add_argument("--figure-only", action="store_true")
+    ap.add_argument("--refit", action="store_true",
+                    help="no runs: regimes, fits and figure again from the results JSON")
+    ap.add_argument("--no-figure", action="store_true")
     ap.add_argument("--no-gc", action="store_true",
                     help="no gc.collect() after remeshes (the library as it is; see simulate)")
     ap.add_argument("--child", nargs=3, metavar=("N", "T_END", "WARMUP"), help=argparse.SUPPRESS)
@@ -443,8 +489,8 @@ def main(argv=None) -> dict | None:
         return None
     mode = "smoke" if a.smoke else "full"
     out = a.out or RESULTS / ("scaling_smoke.json" if a.smoke else "scaling.json")
-    fig = a.figure or (None if a.smoke else FIGURE)
-    if a.figure_only:
+    fig = None if a.no_figure else a.figure or (None if a.smoke else FIGURE)
+    if a.refit:
         data = json.loads(out.read_text())
     else:
         plan = dict(SMOKE if a.smoke else FULL)
@@ -459,8 +505,10 @@ def main(argv=None) -> dict | None:
             data["runs"].append(run_child(n, t_end, WARMUP[mode], collect=not a.no_gc))
             out.parent.mkdir(parents=True, exist_ok=True)
             out.write_text(json.dumps(data, indent=1) + "\n")  # kept after every run
-        data["fits"] = fits(data["runs"])
-        out.write_text(json.dumps(data, indent=1) + "\n")
+    for r in data["runs"]:
+        r["regimes"] = regimes(r)
+    data["fits"] = fits(data["runs"])
+    out.write_text(json.dumps(data, indent=1) + "\n")
     if a.smoke:
         check(data)
     if fig is not None:
