@@ -339,6 +339,15 @@ def fits(runs: list) -> dict:
         y = [r["steady_phases_s"].get(k, 0.0) / r["steady_sim_ms"] for r in runs]
         if min(y) > 0:
             out[f"steady_{k}_per_ms_vs_grains"] = fit_exponent(g, y)
+    events = [r["steady_factorizations"] + r["steady_jacobian_refreshes"] for r in runs]
+    if min(events) > 0:  # one factorisation (BDF2-Stokes operator or Newton Jacobian)
+        each = [r["steady_phases_s"]["factorization"] / e
+                for r, e in zip(runs, events, strict=True)]
+        out["factorization_each_vs_dofs"] = fit_exponent(d, each)
+    if min(r["steady_remeshes"] for r in runs) > 0:  # one remesh: mesh, transfer, set-up
+        out["remesh_each_vs_dofs"] = fit_exponent(
+            d, [(r["steady_phases_s"]["meshing"] + r["steady_phases_s"]["remeshing"])
+                / r["steady_remeshes"] for r in runs])
     for k in ("sedimenting", "contacts"):
         reg = [r["regimes"][k] for r in runs]
         if all(reg):
@@ -346,40 +355,60 @@ def fits(runs: list) -> dict:
     return out
 
 
-def figure(data: dict, path: Path) -> None:
-    """Log-log figure: cost per simulated ms and peak memory against grains, fitted slopes."""
+def figure(data: dict, path: Path, no_gc: dict | None = None) -> None:
+    """Log-log figure: cost per simulated ms and peak memory against grains, fitted slopes.
+
+    Parameters
+    ----------
+    data : dict
+        The results (``runs`` and ``fits``).
+    path : Path
+        The PNG to write.
+    no_gc : dict, optional
+        Results of a ``--no-gc`` run: its peak memory is drawn beside.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     runs, f = data["runs"], data["fits"]
     g = np.array([r["grains"] for r in runs], float)
     gg = np.geomspace(g.min(), g.max(), 50)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4.2))
-    for key, label, marker in (("cost_per_ms_s", "whole run", "o"),
-                               ("steady_cost_per_ms_s", "after start-up", "s")):
-        y = np.array([r[key] for r in runs], float)
-        fk = f["cost_per_ms_vs_grains" if key == "cost_per_ms_s"
-               else "steady_cost_per_ms_vs_grains"]
-        a1.loglog(g, y, marker, label=f"{label}: slope {fk['exponent']:.2f}")
-        a1.loglog(gg, fk["prefactor"] * gg ** fk["exponent"], "-", lw=0.8, color="0.4")
+    series = [("cost_per_ms_s", "cost_per_ms_vs_grains", "wall, whole run", "o"),
+              ("steady_cost_per_ms_s", "steady_cost_per_ms_vs_grains", "wall, after start-up",
+               "s"),
+              ("steady_cpu_per_ms_s", "steady_cpu_per_ms_vs_grains", "CPU, after start-up", "^")]
+    for key, fit, label, marker in series:
+        if fit not in f:
+            continue
+        fk = f[fit]
+        a1.loglog(g, [r[key] for r in runs], marker, mfc="none" if marker == "^" else None,
+                  label=f"{label}: slope {fk['exponent']:.2f}")
+        a1.loglog(gg, fk["prefactor"] * gg ** fk["exponent"], "-", lw=0.8, color="0.5")
     y0 = runs[0]["steady_cost_per_ms_s"] or runs[0]["cost_per_ms_s"]
     a1.loglog(gg, y0 * gg / g[0], "k:", lw=1, label="slope 1")
-    a1.set_xlabel("grains")
-    a1.set_ylabel("wall time per simulated ms (s)")
-    a1.legend(fontsize=8)
+    a1.set_ylabel("time per simulated ms (s)")
     fm = f["peak_mb_vs_grains"]
     a2.loglog(g, [r["peak_mb"] for r in runs], "o", label=f"peak RSS: slope {fm['exponent']:.2f}")
-    a2.loglog(gg, fm["prefactor"] * gg ** fm["exponent"], "-", lw=0.8, color="0.4")
+    a2.loglog(gg, fm["prefactor"] * gg ** fm["exponent"], "-", lw=0.8, color="0.5")
+    if no_gc is not None:
+        fn = no_gc["fits"]["peak_mb_vs_grains"]
+        a2.loglog([r["grains"] for r in no_gc["runs"]], [r["peak_mb"] for r in no_gc["runs"]],
+                  "x", color="C3", label=f"no gc.collect() after remeshes: slope "
+                                         f"{fn['exponent']:.2f}")
     a2.loglog(gg, runs[0]["peak_mb"] * gg / g[0], "k:", lw=1, label="slope 1")
-    a2.set_xlabel("grains")
     a2.set_ylabel("peak memory (MB)")
-    a2.legend(fontsize=8)
     for a in (a1, a2):
+        a.set_xlabel("grains")
+        a.set_xticks(g, [f"{x:.0f}" for x in g])
+        a.xaxis.set_minor_formatter(NullFormatter())
         a.grid(True, which="both", lw=0.3)
-    fig.suptitle(f"collapse scaling ({data['commit']}, {runs[-1]['t_end'] * 1e3:.0f} ms windows)",
-                 fontsize=10)
+        a.legend(fontsize=8)
+    fig.suptitle(f"collapse of n x n grains, {runs[-1]['t_end'] * 1e3:.0f} ms each "
+                 f"({data['commit']}, 2 shared cores)", fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=130)
@@ -420,16 +449,22 @@ def phase_table(data: dict) -> str:
     runs, f = data["runs"], data.get("fits", {})
     head = "| phase | " + " | ".join(f"{r['grains']} grains" for r in runs) + " | exponent |"
     rows = [head, "|" + "---|" * (len(runs) + 2)]
+    old = not all("solve_exclusive" in r["steady_phases_s"] for r in runs)
     for k in (*PHASES, "refresh"):
+        if old and k in ("solve_exclusive", "refresh"):  # records before the refresh timer
+            k = "solve" if k == "solve_exclusive" else None
+        if k is None:
+            continue
         vals = [r["steady_phases_s"].get(k, 0.0) / r["steady_sim_ms"] for r in runs]
         fk = f.get(f"steady_{k}_per_ms_vs_grains")
-        name = {"solve_exclusive": "solve (without refreshes)",
-                "refresh": "of which Jacobian refreshes"}.get(k, k)
+        name = {"solve_exclusive": "solve (without refreshes)", "solve": "solve (with refreshes)",
+                "refresh": "Jacobian refreshes (in the above)"}.get(k, k)
         slope = f"{fk['exponent']:.2f}" if fk else "-"
         rows.append(f"| {name} | " + " | ".join(f"{v:.3g}" for v in vals) + f" | {slope} |")
-    tot = [sum(r["steady_phases_s"].get(k, 0.0) for k in PHASES) / r["steady_sim_ms"]
-           for r in runs]
-    rows.append("| sum | " + " | ".join(f"{v:.3g}" for v in tot) + " | |")
+    if not old:
+        tot = [sum(r["steady_phases_s"].get(k, 0.0) for k in PHASES) / r["steady_sim_ms"]
+               for r in runs]
+        rows.append("| sum | " + " | ".join(f"{v:.3g}" for v in tot) + " | |")
     return "\n".join(rows)
 
 
@@ -512,7 +547,9 @@ def main(argv=None) -> dict | None:
     if a.smoke:
         check(data)
     if fig is not None:
-        figure(data, fig)
+        other = RESULTS / "scaling_no_gc.json"
+        no_gc = json.loads(other.read_text()) if other.exists() and not a.smoke else None
+        figure(data, fig, no_gc if no_gc is not data else None)
     print(table(data))
     print(phase_table(data))
     print(json.dumps(data["fits"], indent=1))
