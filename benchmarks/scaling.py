@@ -4,17 +4,20 @@ Collapses of n x n hexagons (n = 5, 10, 20: 25, 100 and 400 grains) that differ
 only in size: the grain of the bundled ``collapse`` scene (radius 0.5 mm, 2650
 kg/m^3, core at 0.8 of the shadow, spacing 1.15 mm, seeded random orientations),
 its contacts, ``delta_l``, ``dt``, default mesh kind (``auto``) and mesh motion
-(ALE); the paper's 20 x 10 mm box and the block's place in it scaled by n / 5.
-Each run is a subprocess of its own (its ``ru_maxrss`` is its peak memory),
-simulates a fixed window and writes no output files. The cost per simulated
-millisecond is reported for the whole run and for the steady part after the
-first ``--warmup`` steps (mesh building, first factorisation, kernel loading);
-growth exponents are least-squares slopes on log-log axes.
+(ALE); the paper's 20 x 10 mm box and the block's distance from the left wall
+scaled by n / 5, its distance from the floor (3 mm) kept. Each run is a
+subprocess of its own (its ``ru_maxrss`` is its peak memory), simulates a fixed
+window (50 ms) and writes no output files; ``gc.collect()`` runs after every
+step that remeshed (see :func:`simulate`; ``--no-gc``: not). The cost per
+simulated millisecond (wall and CPU time) is reported for the whole run and for
+the steady part after the first :data:`WARMUP` steps (mesh building, first
+factorisations, kernel loading), with the phase times of the run's summary;
+growth exponents are least-squares slopes on log-log axes (:func:`fits`).
 
 Usage::
 
     python benchmarks/scaling.py                        # n = 5, 10, 20 -> results/scaling.json
-    python benchmarks/scaling.py --smoke                # n = 2, 3, a few steps (< 1 min)
+    python benchmarks/scaling.py --smoke                # n = 2, 3, 6 steps (~10 s), checked
     python benchmarks/scaling.py --refit                # fits, figure from results/scaling.json
 
 The figure (cost per simulated ms and peak memory against grains, fitted
@@ -180,7 +183,8 @@ def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = True) 
         the mesh a remesh drops sits in a reference cycle (its coupling's factor cache
         holds a bound method of the coupling) with its sparse LU factors, which the
         cyclic collector frees late; without it the peak memory grows with the number
-        of remeshes (25 grains, 50 ms, 17 remeshes: 1768 MB instead of 539 MB).
+        of remeshes (25 grains, 50 ms, 17 remeshes: 1768 MB resident at the end, 539 MB
+        with the collections).
     """
     from skfem_granular.simulation import Simulation
 
