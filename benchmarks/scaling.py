@@ -1,0 +1,564 @@
+"""Scaling of the coupled collapse with the number of grains (issue 15).
+
+Collapses of n x n hexagons (n = 5, 10, 20: 25, 100 and 400 grains) that differ
+only in size: the grain of the bundled ``collapse`` scene (radius 0.5 mm, 2650
+kg/m^3, core at 0.8 of the shadow, spacing 1.15 mm, seeded random orientations),
+its contacts, ``delta_l``, ``dt``, default mesh kind (``auto``) and mesh motion
+(ALE); the paper's 20 x 10 mm box and the block's distance from the left wall
+scaled by n / 5, its distance from the floor (3 mm) kept. Each run is a
+subprocess of its own (its ``ru_maxrss`` is its peak memory), simulates a fixed
+window (50 ms) and writes no output files; ``gc.collect()`` runs after every
+step that remeshed (see :func:`simulate`; ``--no-gc``: not). The cost per
+simulated millisecond (wall and CPU time) is reported for the whole run and for
+the steady part after the first :data:`WARMUP` steps (mesh building, first
+factorisations, kernel loading), with the phase times of the run's summary;
+growth exponents are least-squares slopes on log-log axes (:func:`fits`).
+
+Usage::
+
+    python benchmarks/scaling.py                        # n = 5, 10, 20 -> results/scaling.json
+    python benchmarks/scaling.py --smoke                # n = 2, 3, 6 steps (~10 s), checked
+    python benchmarks/scaling.py --refit                # fits, figure from results/scaling.json
+
+The figure (cost per simulated ms and peak memory against grains, fitted
+slopes, a slope-1 guide) goes to ``docs/figures/scaling.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+import tomllib
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks/results"
+FIGURE = ROOT / "docs/figures/scaling.png"
+
+#: The paper's block is 5 x 5 grains in a 20 x 10 mm box, its first grain at (0.8, 3.0) mm.
+BASE_N = 5
+BASE_BOX = (20.0e-3, 10.0e-3)
+BASE_ORIGIN = (0.8e-3, 3.0e-3)
+
+#: Full run: block sizes and simulated windows (s). The bottom row starts 3 mm above the
+#: floor in every box, so every window holds the same regimes: the block sediments for
+#: ~30 ms, then grains touch each other and the floor (contacts, frequent remeshes).
+FULL = {5: 0.05, 10: 0.05, 20: 0.05}
+#: Smoke run: tiny blocks, a few steps of dt = 2e-4 s.
+SMOKE = {2: 0.0012, 3: 0.0012}
+#: Steps counted as start-up (first factorisations, kernels loaded from numba's cache).
+WARMUP = {"full": 5, "smoke": 2}
+
+#: Keys every per-run record carries (checked by the smoke test).
+RUN_KEYS = ("n", "grains", "t_end", "steps", "warmup_steps", "vertices_initial",
+            "vertices_final", "dofs_initial", "dofs_final", "dofs_max", "remeshes",
+            "remesh_reasons", "factorizations", "jacobian_refreshes", "retries",
+            "euler_steps_at_contacts", "max_contacts", "wall_s", "startup_s", "steady_s",
+            "steady_sim_ms", "cost_per_ms_s", "steady_cost_per_ms_s", "phases_s",
+            "steady_phases_s", "peak_mb", "loadavg_before", "loadavg_after", "gc_after_remesh",
+    "gc_s", "cpu_s", "steady_cpu_s", "steady_cpu_per_ms_s", "regimes")
+
+
+def scaled_scene(n: int, t_end: float):
+    """The bundled collapse with an n x n block in a box scaled by n / 5.
+
+    The block keeps its distance from the left wall in the scaled box (0.8 mm x n / 5)
+    and from the floor (3 mm: the bottom row reaches the floor at about the same time).
+    For n < 5 (the smoke runs) the box is 10 mm high and the block 0.8 mm from the wall
+    as in the paper.
+
+    Parameters
+    ----------
+    n : int
+        Grains per side of the block.
+    t_end : float
+        Simulated window (s).
+
+    Returns
+    -------
+    Scene
+        No output directory: nothing is written.
+    """
+    from skfem_granular.scene import Scene, bundled, grid_particles
+
+    s = n / BASE_N
+    grid = tomllib.loads(bundled("collapse").read_text())["grid"]
+    grid = {**grid, "nx": n, "ny": n,
+            "origin": [BASE_ORIGIN[0] * max(s, 1.0), BASE_ORIGIN[1]]}
+    sc = Scene.bundled("collapse")
+    return replace(sc, domain=(0.0, 0.0, BASE_BOX[0] * s, BASE_BOX[1] * max(s, 1.0)),
+                   particles=tuple(grid_particles(grid)), output_dir=None,
+                   time=replace(sc.time, t_end=t_end), name=f"collapse_{n}x{n}")
+
+
+#: Wall time spent in Jacobian refreshes (:func:`time_refreshes`), in this process.
+REFRESH_S = [0.0]
+
+
+def time_refreshes() -> None:
+    """Time ``MonolithicCoupling.factorize_jacobian`` (in this process, not the library).
+
+    A refresh runs inside the corrector, so the library counts its assembly and
+    factorisation both under their names and under ``solve``; with this time the
+    benchmark reports ``solve`` without them (``solve_exclusive``).
+    """
+    from skfem_granular.coupled.monolithic import MonolithicCoupling
+
+    inner = MonolithicCoupling.factorize_jacobian
+    if getattr(inner, "_timed", False):
+        return
+
+    def timed(self, *args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return inner(self, *args, **kwargs)
+        finally:
+            REFRESH_S[0] += time.perf_counter() - t0
+
+    timed._timed = True
+    MonolithicCoupling.factorize_jacobian = timed
+
+
+def rss_mb() -> float:
+    """Resident memory of this process now (MB; Linux ``/proc``, else the peak so far)."""
+    try:
+        pages = int(Path("/proc/self/statm").read_text().split()[1])
+        return pages * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError, IndexError):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def cpu_s() -> float:
+    """CPU time (user + system) of this process so far (s)."""
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_utime + u.ru_stime
+
+
+def counts(sim) -> dict:
+    """Phase times (s) and solver counters of a running simulation, as they are now.
+
+    ``phases`` has ``solve_exclusive`` (``solve`` less the Jacobian refreshes inside it,
+    whose assembly and factorisation are also under their own names) and ``refresh``.
+    """
+    st = sim.stepper
+    st.collect_timings()
+    ph = {k: v for k, v in sim.timings.items() if k != "total"}
+    ph["refresh"] = REFRESH_S[0]
+    ph["solve_exclusive"] = ph.get("solve", 0.0) - REFRESH_S[0]
+    return {"phases": ph, "remeshes": st.remeshes, "cpu_s": cpu_s(), **st.factor_counts}
+
+
+def mesh_size(sim) -> tuple[int, int]:
+    """Vertices and DOFs of the mesh in use."""
+    return int(sim.mesh.p.shape[1]), int(sim.stepper.space.N)
+
+
+def difference(after: dict, before: dict) -> dict:
+    """``after - before`` for every key of ``after`` (missing in ``before``: 0)."""
+    return {k: round(v - before.get(k, 0.0), 6) for k, v in after.items()}
+
+
+def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = True) -> dict:
+    """Run one scaled collapse in this process; the record of :data:`RUN_KEYS` but the load.
+
+    Parameters
+    ----------
+    n, t_end
+        See :func:`scaled_scene`.
+    warmup : int
+        Steps counted as start-up; the steady figures are those after them.
+    log : file, optional
+        A progress line every 10 steps.
+    collect : bool
+        ``gc.collect()`` after every step that remeshed (timed, inside the wall time):
+        the mesh a remesh drops sits in a reference cycle (its coupling's factor cache
+        holds a bound method of the coupling) with its sparse LU factors, which the
+        cyclic collector frees late; without it the peak memory grows with the number
+        of remeshes (25 grains, 50 ms, 17 remeshes: 1768 MB resident at the end, 539 MB
+        with the collections).
+    """
+    from skfem_granular.simulation import Simulation
+
+    time_refreshes()
+    t0, c0 = time.perf_counter(), cpu_s()
+    sim = Simulation(scaled_scene(n, t_end))
+    v0, d0 = mesh_size(sim)
+    steps = {"wall_s": [], "dofs": [], "contacts": [], "remeshes": [], "rss_mb": []}
+    mark, t_mark, w_mark = None, 0.0, t0
+    gc_s, remeshed = 0.0, 0
+    tick = time.perf_counter()
+    for t, _ in sim.evolve(progress=False):
+        if collect and sim.stepper.remeshes != remeshed:
+            t1 = time.perf_counter()
+            gc.collect()
+            gc_s += time.perf_counter() - t1
+        remeshed = sim.stepper.remeshes
+        now = time.perf_counter()
+        steps["wall_s"].append(round(now - tick, 5))
+        steps["dofs"].append(mesh_size(sim)[1])
+        steps["contacts"].append(int(sim.dem.contact_count().sum()))
+        steps["remeshes"].append(sim.stepper.remeshes)
+        steps["rss_mb"].append(round(rss_mb(), 1))
+        if sim.steps_done == warmup:
+            mark, t_mark, w_mark = counts(sim), t, time.perf_counter()
+        if log is not None and sim.steps_done % 10 == 0:
+            print(f"n={n} step {sim.steps_done} t={t:.4f} wall={now - t0:.1f}s "
+                  f"dofs={steps['dofs'][-1]} remeshes={steps['remeshes'][-1]} "
+                  f"contacts={steps['contacts'][-1]}", file=log, flush=True)
+        tick = time.perf_counter()
+    wall = time.perf_counter() - t0
+    h = sim.result.history
+    end = counts(sim)
+    if mark is None:  # fewer steps than the warm-up: no steady part
+        mark, t_mark, w_mark = end, float(h.t[-1]), t0 + wall
+    rec = record(n, sim, wall, wall - (w_mark - t0), (float(h.t[-1]) - t_mark) * 1e3,
+                 (mark, end), (v0, d0), steps, warmup)
+    cpu = end["cpu_s"] - c0
+    steady_cpu = end["cpu_s"] - mark["cpu_s"]
+    return {**rec, "gc_after_remesh": collect, "gc_s": gc_s, "cpu_s": cpu,
+            "steady_cpu_s": steady_cpu,
+            "steady_cpu_per_ms_s": steady_cpu / rec["steady_sim_ms"] if rec["steady_sim_ms"] > 0
+            else None}
+
+
+def record(n, sim, wall, steady, steady_ms, marks, initial, steps, warmup) -> dict:
+    """The figures of one run (see :func:`simulate`)."""
+    s, h = sim.result.summary, sim.result.history
+    mark, end = marks
+    dofs = [initial[1], *steps["dofs"]]
+    contacts = steps["contacts"]
+    return {
+        "n": n, "grains": sim.dem.n, "t_end": float(h.t[-1]), "steps": len(h),
+        "warmup_steps": warmup, "vertices_initial": initial[0],
+        "vertices_final": mesh_size(sim)[0], "dofs_initial": initial[1], "dofs_final": dofs[-1],
+        "dofs_max": max(dofs), "dofs_mean": float(np.mean(dofs)), "remeshes": s["remeshes"],
+        "remesh_reasons": s["remesh_reasons"], "factorizations": s.get("factorizations"),
+        "jacobian_refreshes": s.get("jacobian_refreshes"), "retries": s["retries"],
+        "euler_steps_at_contacts": s["euler_steps_at_contacts"],
+        "max_contacts": max(contacts, default=0),
+        "contacts_final": contacts[-1] if contacts else 0,
+        "first_contact_step": next((k + 1 for k, c in enumerate(contacts) if c), None),
+        "wall_s": wall, "startup_s": wall - steady, "steady_s": steady,
+        "steady_sim_ms": steady_ms, "cost_per_ms_s": wall / (float(h.t[-1]) * 1e3),
+        "steady_cost_per_ms_s": steady / steady_ms if steady_ms > 0 else None,
+        "phases_s": {**s["wall_time"], **{k: round(end["phases"][k], 6)
+                                          for k in ("refresh", "solve_exclusive")}},
+        "steady_phases_s": difference(end["phases"], mark["phases"]),
+        "steady_remeshes": end["remeshes"] - mark["remeshes"],
+        "steady_factorizations": end.get("factorizations", 0) - mark.get("factorizations", 0),
+        "steady_jacobian_refreshes": (end.get("jacobian_refreshes", 0)
+                                      - mark.get("jacobian_refreshes", 0)),
+        "status": s["status"], "warnings": s["warnings"],
+        "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "per_step": steps,
+    }
+
+
+def run_child(n: int, t_end: float, warmup: int, collect: bool = True) -> dict:
+    """:func:`simulate` in a fresh interpreter (its own peak memory), with the load around it."""
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", str(n), str(t_end),
+           str(warmup), *([] if collect else ["--no-gc"])]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)}
+    load0 = list(os.getloadavg())
+    out = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, text=True, env=env)
+    rec = json.loads(out.stdout.strip().splitlines()[-1])
+    rec["loadavg_before"], rec["loadavg_after"] = load0, list(os.getloadavg())
+    return rec
+
+
+def regimes(rec: dict) -> dict:
+    """Cost per simulated ms and remeshes before the first contact and from it on.
+
+    From the per-step rows of a record (the steps after the warm-up; the Simulation's
+    construction is not in them). Before the first contact the block sediments; from
+    it on the DEM has contacts and the grains' gaps close (more remeshes).
+    """
+    ps, w = rec["per_step"], rec["warmup_steps"]
+    dt_ms = rec["t_end"] * 1e3 / rec["steps"]
+    first = rec["first_contact_step"] or rec["steps"] + 1
+    out = {}
+    for name, lo, hi in (("sedimenting", w, first - 1), ("contacts", first - 1, rec["steps"])):
+        lo = max(lo, w)
+        n = hi - lo
+        if n <= 0:
+            out[name] = None
+            continue
+        rem = ps["remeshes"][hi - 1] - (ps["remeshes"][lo - 1] if lo > 0 else 0)
+        out[name] = {"steps": n, "sim_ms": n * dt_ms, "wall_s": float(sum(ps["wall_s"][lo:hi])),
+                     "cost_per_ms_s": float(sum(ps["wall_s"][lo:hi])) / (n * dt_ms),
+                     "remeshes": rem, "remeshes_per_ms": rem / (n * dt_ms)}
+    return out
+
+
+def fit_exponent(x, y) -> dict:
+    """Least-squares line through ``(log x, log y)``: ``y ~ c x^k``.
+
+    Parameters
+    ----------
+    x, y : sequence of float
+        Positive values, at least two.
+
+    Returns
+    -------
+    dict
+        ``exponent`` k, ``prefactor`` c and ``rms_log_residual`` (natural log).
+    """
+    lx, ly = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
+    k, lc = np.polyfit(lx, ly, 1)
+    res = ly - (k * lx + lc)
+    return {"exponent": float(k), "prefactor": float(np.exp(lc)),
+            "rms_log_residual": float(np.sqrt(np.mean(res ** 2)))}
+
+
+def fits(runs: list) -> dict:
+    """Growth exponents of cost and memory in the number of grains and of DOFs."""
+    g = [r["grains"] for r in runs]
+    d = [r["dofs_mean"] for r in runs]
+    out = {
+        "cost_per_ms_vs_grains": fit_exponent(g, [r["cost_per_ms_s"] for r in runs]),
+        "steady_cost_per_ms_vs_grains": fit_exponent(
+            g, [r["steady_cost_per_ms_s"] for r in runs]),
+        "steady_cost_per_ms_vs_dofs": fit_exponent(d, [r["steady_cost_per_ms_s"] for r in runs]),
+        **({"steady_cpu_per_ms_vs_grains": fit_exponent(
+            g, [r["steady_cpu_per_ms_s"] for r in runs])}
+           if all(r.get("steady_cpu_per_ms_s") for r in runs) else {}),
+        "peak_mb_vs_grains": fit_exponent(g, [r["peak_mb"] for r in runs]),
+        "dofs_vs_grains": fit_exponent(g, d),
+        "remeshes_vs_grains": fit_exponent(g, [max(r["remeshes"], 0.5) for r in runs]),
+        "steps_per_ms_vs_grains": fit_exponent(g, [r["steps"] / (r["t_end"] * 1e3)
+                                                  for r in runs]),
+    }
+    phases = sorted({k for r in runs for k in r["steady_phases_s"] if k != "total"})
+    for k in phases:
+        y = [r["steady_phases_s"].get(k, 0.0) / r["steady_sim_ms"] for r in runs]
+        if min(y) > 0:
+            out[f"steady_{k}_per_ms_vs_grains"] = fit_exponent(g, y)
+    events = [r["steady_factorizations"] + r["steady_jacobian_refreshes"] for r in runs]
+    if min(events) > 0:  # one factorisation (BDF2-Stokes operator or Newton Jacobian)
+        each = [r["steady_phases_s"]["factorization"] / e
+                for r, e in zip(runs, events, strict=True)]
+        out["factorization_each_vs_dofs"] = fit_exponent(d, each)
+    if min(r["steady_remeshes"] for r in runs) > 0:  # one remesh: mesh, transfer, set-up
+        out["remesh_each_vs_dofs"] = fit_exponent(
+            d, [(r["steady_phases_s"]["meshing"] + r["steady_phases_s"]["remeshing"])
+                / r["steady_remeshes"] for r in runs])
+    for k in ("sedimenting", "contacts"):
+        reg = [r["regimes"][k] for r in runs]
+        if all(reg):
+            out[f"{k}_cost_per_ms_vs_grains"] = fit_exponent(g, [x["cost_per_ms_s"] for x in reg])
+    return out
+
+
+def figure(data: dict, path: Path, no_gc: dict | None = None) -> None:
+    """Log-log figure: cost per simulated ms and peak memory against grains, fitted slopes.
+
+    Parameters
+    ----------
+    data : dict
+        The results (``runs`` and ``fits``).
+    path : Path
+        The PNG to write.
+    no_gc : dict, optional
+        Results of a ``--no-gc`` run: its peak memory is drawn beside.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    runs, f = data["runs"], data["fits"]
+    g = np.array([r["grains"] for r in runs], float)
+    gg = np.geomspace(g.min(), g.max(), 50)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4.2))
+    series = [("cost_per_ms_s", "cost_per_ms_vs_grains", "wall, whole run", "o"),
+              ("steady_cost_per_ms_s", "steady_cost_per_ms_vs_grains", "wall, after start-up",
+               "s"),
+              ("steady_cpu_per_ms_s", "steady_cpu_per_ms_vs_grains", "CPU, after start-up", "^")]
+    for key, fit, label, marker in series:
+        if fit not in f:
+            continue
+        fk = f[fit]
+        a1.loglog(g, [r[key] for r in runs], marker, mfc="none" if marker == "^" else None,
+                  label=f"{label}: slope {fk['exponent']:.2f}")
+        a1.loglog(gg, fk["prefactor"] * gg ** fk["exponent"], "-", lw=0.8, color="0.5")
+    y0 = runs[0]["steady_cost_per_ms_s"] or runs[0]["cost_per_ms_s"]
+    a1.loglog(gg, y0 * gg / g[0], "k:", lw=1, label="slope 1")
+    a1.set_ylabel("time per simulated ms (s)")
+    fm = f["peak_mb_vs_grains"]
+    a2.loglog(g, [r["peak_mb"] for r in runs], "o", label=f"peak RSS: slope {fm['exponent']:.2f}")
+    a2.loglog(gg, fm["prefactor"] * gg ** fm["exponent"], "-", lw=0.8, color="0.5")
+    if no_gc is not None:
+        fn = no_gc["fits"]["peak_mb_vs_grains"]
+        a2.loglog([r["grains"] for r in no_gc["runs"]], [r["peak_mb"] for r in no_gc["runs"]],
+                  "x", color="C3", label=f"no gc.collect() after remeshes: slope "
+                                         f"{fn['exponent']:.2f}")
+    a2.loglog(gg, runs[0]["peak_mb"] * gg / g[0], "k:", lw=1, label="slope 1")
+    a2.set_ylabel("peak memory (MB)")
+    for a in (a1, a2):
+        a.set_xlabel("grains")
+        a.set_xticks(g, [f"{x:.0f}" for x in g])
+        a.xaxis.set_minor_formatter(NullFormatter())
+        a.grid(True, which="both", lw=0.3)
+        a.legend(fontsize=8)
+    fig.suptitle(f"collapse of n x n grains, {runs[-1]['t_end'] * 1e3:.0f} ms each "
+                 f"({data['commit']}, 2 shared cores)", fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def table(data: dict) -> str:
+    """The Markdown table of the runs (as on the benchmarks page)."""
+    head = ("| n | grains | vertices | DOFs (start / end / max) | steps | remeshes (travel / "
+            "ahead / angle / area) | factorisations / Jacobian refreshes | halvings | wall s "
+            "(start-up) | s per sim. ms (steady) | CPU s per sim. ms (steady) | peak MB | "
+            "load before / after |")
+    rows = [head, "|" + "---|" * 13]
+    for r in data["runs"]:
+        rr = r["remesh_reasons"] or {}
+        rows.append(
+            f"| {r['n']} | {r['grains']} | {r['vertices_initial']} / {r['vertices_final']} | "
+            f"{r['dofs_initial']} / {r['dofs_final']} / {r['dofs_max']} | {r['steps']} | "
+            f"{r['remeshes']} ({rr.get('travel', 0)} / {rr.get('ahead', 0)} / "
+            f"{rr.get('angle', 0)} / {rr.get('area', 0)}) | {r['factorizations']} / "
+            f"{r['jacobian_refreshes']} | {r['retries']} | {r['wall_s']:.1f} "
+            f"({r['startup_s']:.1f}) | {r['cost_per_ms_s']:.3g} "
+            f"({r['steady_cost_per_ms_s'] or float('nan'):.3g}) | "
+            f"{r.get('steady_cpu_per_ms_s') or float('nan'):.3g} | {r['peak_mb']:.0f} | "
+            f"{r['loadavg_before'][0]:.2f} / {r['loadavg_after'][0]:.2f} |")
+    return "\n".join(rows)
+
+
+#: Phases of the phase table, exclusive of each other (``solve_exclusive``: the corrector's
+#: triangular solves, residuals and mesh motion; the refreshes' assembly and factorisation
+#: are in ``assembly`` and ``factorization``).
+PHASES = ("meshing", "remeshing", "assembly", "factorization", "solve_exclusive", "dem",
+          "forces")
+
+
+def phase_table(data: dict) -> str:
+    """Markdown table: steady wall time per simulated ms by phase, and its fitted exponent."""
+    runs, f = data["runs"], data.get("fits", {})
+    head = "| phase | " + " | ".join(f"{r['grains']} grains" for r in runs) + " | exponent |"
+    rows = [head, "|" + "---|" * (len(runs) + 2)]
+    old = not all("solve_exclusive" in r["steady_phases_s"] for r in runs)
+    for k in (*PHASES, "refresh"):
+        if old and k in ("solve_exclusive", "refresh"):  # records before the refresh timer
+            k = "solve" if k == "solve_exclusive" else None
+        if k is None:
+            continue
+        vals = [r["steady_phases_s"].get(k, 0.0) / r["steady_sim_ms"] for r in runs]
+        fk = f.get(f"steady_{k}_per_ms_vs_grains")
+        name = {"solve_exclusive": "solve (without refreshes)", "solve": "solve (with refreshes)",
+                "refresh": "Jacobian refreshes (in the above)"}.get(k, k)
+        slope = f"{fk['exponent']:.2f}" if fk else "-"
+        rows.append(f"| {name} | " + " | ".join(f"{v:.3g}" for v in vals) + f" | {slope} |")
+    if not old:
+        tot = [sum(r["steady_phases_s"].get(k, 0.0) for k in PHASES) / r["steady_sim_ms"]
+               for r in runs]
+        rows.append("| sum | " + " | ".join(f"{v:.3g}" for v in tot) + " | |")
+    return "\n".join(rows)
+
+
+def check(data: dict) -> None:
+    """Assert that every run has every field with a real value and that the fit works.
+
+    Raises
+    ------
+    AssertionError
+        Naming the run and field, or the synthetic power law not recovered.
+    """
+    for r in data["runs"]:
+        for k in RUN_KEYS:
+            assert k in r and r[k] is not None, f"n={r.get('n')}: {k} missing"
+        for k in ("wall_s", "cost_per_ms_s", "peak_mb", "dofs_initial", "steps"):
+            assert np.isfinite(r[k]) and r[k] > 0, f"n={r['n']}: {k} = {r[k]}"
+        assert r["status"] == "completed", f"n={r['n']}: status {r['status']}"
+        assert len(r["per_step"]["wall_s"]) == r["steps"], f"n={r['n']}: per-step rows"
+    x = np.array([25.0, 100.0, 400.0])
+    got = fit_exponent(x, 0.03 * x ** 1.17 * np.array([1.0, 1.0 + 1e-9, 1.0]))
+    assert abs(got["exponent"] - 1.17) < 1e-6 and abs(got["prefactor"] - 0.03) < 1e-6, got
+    for k in ("cost_per_ms_vs_grains", "steady_cost_per_ms_vs_grains", "peak_mb_vs_grains",
+              "steady_cost_per_ms_vs_dofs"):
+        assert np.isfinite(data["fits"][k]["exponent"]), k
+
+
+def commit_id() -> str | None:
+    """Short hash of the checkout's HEAD (None outside git)."""
+    try:
+        return subprocess.run(["git", "-C", str(ROOT), "log", "-1", "--format=%h"],
+                              capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+
+
+def main(argv=None) -> dict | None:
+    """Command line (see the module docstring)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--smoke", action="store_true", help="n = 2, 3, a few steps")
+    ap.add_argument("--n", type=int, nargs="+", help="block sizes (default 5 10 20)")
+    ap.add_argument("--t-end", type=float, nargs="+",
+                    help="windows (s), one for all or one per n")
+    ap.add_argument("--out", type=Path, help="results JSON (default results/scaling[_smoke])")
+    ap.add_argument("--figure", type=Path, help=f"figure (default {FIGURE.relative_to(ROOT)}; "
+                                                "smoke: none)")
+    ap.add_argument("--refit", action="store_true",
+                    help="no runs: regimes, fits and figure again from the results JSON")
+    ap.add_argument("--no-figure", action="store_true")
+    ap.add_argument("--no-gc", action="store_true",
+                    help="no gc.collect() after remeshes (the library as it is; see simulate)")
+    ap.add_argument("--child", nargs=3, metavar=("N", "T_END", "WARMUP"), help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.child:
+        rec = simulate(int(a.child[0]), float(a.child[1]), int(a.child[2]), log=sys.stderr,
+                       collect=not a.no_gc)
+        print(json.dumps(rec))
+        return None
+    mode = "smoke" if a.smoke else "full"
+    out = a.out or RESULTS / ("scaling_smoke.json" if a.smoke else "scaling.json")
+    fig = None if a.no_figure else a.figure or (None if a.smoke else FIGURE)
+    if a.refit:
+        data = json.loads(out.read_text())
+    else:
+        plan = dict(SMOKE if a.smoke else FULL)
+        if a.n:
+            plan = {n: plan.get(n, max(plan.values())) for n in a.n}
+        if a.t_end:
+            ends = a.t_end * len(plan) if len(a.t_end) == 1 else a.t_end
+            plan = dict(zip(plan, ends, strict=True))
+        data = {"benchmark": "scaling", "mode": mode, "commit": commit_id(),
+                "cpus": os.cpu_count(), "runs": []}
+        for n, t_end in plan.items():
+            data["runs"].append(run_child(n, t_end, WARMUP[mode], collect=not a.no_gc))
+            out.parent.mkdir(parents=True, exist_ok=True)
+            out.write_text(json.dumps(data, indent=1) + "\n")  # kept after every run
+    for r in data["runs"]:
+        r["regimes"] = regimes(r)
+    data["fits"] = fits(data["runs"])
+    out.write_text(json.dumps(data, indent=1) + "\n")
+    if a.smoke:
+        check(data)
+    if fig is not None:
+        other = RESULTS / "scaling_no_gc.json"
+        no_gc = json.loads(other.read_text()) if other.exists() and not a.smoke else None
+        figure(data, fig, no_gc if no_gc is not data else None)
+    print(table(data))
+    print(phase_table(data))
+    print(json.dumps(data["fits"], indent=1))
+    return data
+
+
+if __name__ == "__main__":
+    main()
