@@ -122,7 +122,12 @@ class TaylorHood:
                                            parts=("M", "B", "convection") + forms_in_use)
 
     def _moved_block(self, name: str):
-        """A geometric block of a moved space, from reference-element data."""
+        """A geometric block of this space (moved or not), from reference-element data: one
+        compiled pass over the triangles instead of scikit-fem's ``asm`` of
+        :mod:`~skfem_granular.fluid.forms` (the same matrices to 1e-13, tested; a remesh
+        builds them for every new mesh)."""
+        if self.reference is self:
+            return self.reference_blocks.moved(self.mesh.p, check=False, parts=(name,))[name]
         if name not in self._moved_geometry:  # a viscous form nobody asked for before
             return self.reference_blocks.moved(self.mesh.p, check=False, parts=(name,))[name]
         return self._moved_geometry[name]
@@ -162,37 +167,27 @@ class TaylorHood:
     @cached_property
     def M(self) -> sp.csr_matrix:
         """Velocity mass matrix ``(u, v)``."""
-        if self.reference is not self:
-            return self._moved_block("M")
-        return asm(forms.vector_mass, self.ub).tocsr()
+        return self._moved_block("M")
 
     @cached_property
     def K_symmetric(self) -> sp.csr_matrix:
         """``2 (eps(u), eps(v))``; multiply by the viscosity."""
-        if self.reference is not self:
-            return self._moved_block("K_symmetric")
-        return asm(forms.viscous_symmetric, self.ub).tocsr()
+        return self._moved_block("K_symmetric")
 
     @cached_property
     def K_laplace(self) -> sp.csr_matrix:
         """``(grad u, grad v)``; multiply by the viscosity."""
-        if self.reference is not self:
-            return self._moved_block("K_laplace")
-        return asm(forms.viscous_laplace, self.ub).tocsr()
+        return self._moved_block("K_laplace")
 
     @cached_property
     def B(self) -> sp.csr_matrix:
         """Divergence block ``-(q, div u)``, shape ``(np_, nu)``."""
-        if self.reference is not self:
-            return self._moved_block("B")
-        return asm(forms.divergence, self.ub, self.pb).tocsr()
+        return self._moved_block("B")
 
     @cached_property
     def Mp(self) -> sp.csr_matrix:
         """Pressure mass matrix."""
-        if self.reference is not self:  # a moved mesh: from the triangles' determinants
-            return self.reference_blocks.pressure_mass(self.mesh.p)
-        return asm(forms.pressure_mass, self.pb).tocsr()
+        return self.reference_blocks.pressure_mass(self.mesh.p)  # from the determinants
 
     @cached_property
     def Lp(self) -> sp.csr_matrix:
