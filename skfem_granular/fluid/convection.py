@@ -20,6 +20,36 @@ import scipy.sparse as sp
 from skfem import Basis
 
 
+def element_pattern(edofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The CSR pattern of every 12 x 12 element matrix of a P2 vector field on a mesh.
+
+    Parameters
+    ----------
+    edofs : (6, nel) ndarray
+        Scalar P2 DOFs of every triangle (vector DOF ``2 k + c`` is component ``c`` of
+        scalar DOF ``k``).
+
+    Returns
+    -------
+    slot : (nel * 144,) int32 ndarray
+        Value slot of local entry ``(e, i, c, j, d)`` (row ``2 edof_i + c``, column
+        ``2 edof_j + d``).
+    indices, indptr : int32 ndarray
+        The pattern, rows sorted.
+    """
+    nloc, nel = edofs.shape
+    nu = 2 * (int(edofs.max()) + 1)
+    vdofs = 2 * edofs.T[:, :, None] + np.arange(2)[None, None, :]  # (nel, 6, 2)
+    rows = np.broadcast_to(vdofs[:, :, :, None, None], (nel, nloc, 2, nloc, 2))
+    cols = np.broadcast_to(vdofs[:, None, None, :, :], rows.shape)
+    keys = rows.ravel().astype(np.int64) * nu + cols.ravel()
+    unique, slot = np.unique(keys, return_inverse=True)
+    indices = (unique % nu).astype(np.int32)
+    counts = np.bincount(unique // nu, minlength=nu)
+    indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
+    return slot.astype(np.int32), indices, indptr
+
+
 class ConvectionKernel:
     """Convection ``((a . grad) b, v)`` on a P2 vector space.
 
@@ -30,7 +60,7 @@ class ConvectionKernel:
         Vector DOF ``2 k + c`` is component ``c`` of scalar DOF ``k``.
     """
 
-    def __init__(self, scalar_basis: Basis):
+    def __init__(self, scalar_basis: Basis, pattern: tuple | None = None):
         sb = scalar_basis
         self.edofs = sb.element_dofs  # (6, nel)
         nloc = self.edofs.shape[0]
@@ -38,18 +68,9 @@ class ConvectionKernel:
         self.dphi = np.array([sb.basis[i][0].grad for i in range(nloc)])  # (6, 2, nel, nq)
         self.dx = sb.dx  # (nel, nq)
         self.nu = 2 * sb.N
-        # Jacobian pattern: local entry (e, i, c, j, d) -> row 2 edof_i + c, col 2 edof_j + d
-        vdofs = 2 * self.edofs.T[:, :, None] + np.arange(2)[None, None, :]  # (nel, 6, 2)
-        rows = np.broadcast_to(vdofs[:, :, :, None, None], (vdofs.shape[0], nloc, 2, nloc, 2))
-        cols = np.broadcast_to(vdofs[:, None, None, :, :], rows.shape)
-        keys = rows.ravel().astype(np.int64) * self.nu + cols.ravel()
-        unique, slot = np.unique(keys, return_inverse=True)
         #: value slot of local entry (e, i, c, j, d) in :attr:`pattern` (int32)
-        self.slot = slot.astype(np.int32)
-        self._indices = (unique % self.nu).astype(np.int32)
-        counts = np.bincount(unique // self.nu, minlength=self.nu)
-        self._indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
-        self._vdofs = vdofs
+        self.slot, self._indices, self._indptr = (element_pattern(self.edofs) if pattern is None
+                                                  else pattern)
         # element-major tables for batched matrix products (numpy.matmul over elements):
         # _tab[e] stacks the values, x- and y-derivatives of the 6 basis functions at the
         # quadrature points, (3 nq, 6); _wphi[e] = phi_i(q) dx(q), (6, nq)

@@ -133,8 +133,7 @@ class ReferenceBlocks:
         nu, np_ = space.nu, space.np_
         # the velocity pattern is the convection kernel's: entry (e, i, c, j, d) at row
         # 2 edof_i + c, column 2 edof_j + d, in the same order
-        conv = space.convection
-        self.uu = _Pattern(None, None, (nu, nu), known=(conv.slot, *conv.pattern))
+        self.uu = _Pattern(None, None, (nu, nu), known=space.velocity_pattern)
         self.pu = _Pattern(np.broadcast_to(pdofs[:, :, None], (nel, 3, 12)),
                            np.broadcast_to(vdofs[:, None, :], (nel, 3, 12)), (np_, nu))
         # the pressure mass matrix is |det A| times the reference one per triangle: its

@@ -204,10 +204,10 @@ class NavierStokesOperator:
         """Full Jacobian of :meth:`residual` at ``x`` (Picard matrix if ``newton=False``);
         with ``w_mesh`` that of the ALE form (the wind ``u - w``: ``- rho N(w)`` added)."""
         A = self.velocity_block(c_mass)
-        kern = self.space.convection
-        N = kern.jacobian(x[: self.space.nu], newton=newton) if self.convection else None
+        N = (self.space.convection.jacobian(x[: self.space.nu], newton=newton)
+             if self.convection else None)  # a Stokes operator never builds the kernel
         if w_mesh is not None:
-            Nw = kern.jacobian(w_mesh, newton=False)
+            Nw = self.space.convection.jacobian(w_mesh, newton=False)
             N = -Nw if N is None else N - Nw
         if N is not None:
             N.data *= self.fluid.density

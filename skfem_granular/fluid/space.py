@@ -16,7 +16,7 @@ import scipy.sparse as sp
 from skfem import Basis, ElementTriP1, ElementTriP2, ElementVector, FacetBasis, MeshTri, asm
 
 from . import forms
-from .convection import ConvectionKernel
+from .convection import ConvectionKernel, element_pattern
 from .ordering import element_incidence, fill_reducing_ordering
 
 #: Quadrature order shared by all bases: the convection integrand on affine
@@ -200,7 +200,16 @@ class TaylorHood:
         if self.reference is not self:
             g = self._moved_geometry
             return self.reference.convection.with_tables(g["tab"], g["wphi"])
-        return ConvectionKernel(self.sb)
+        return ConvectionKernel(self.sb, pattern=self.velocity_pattern)
+
+    @cached_property
+    def velocity_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(slot, indices, indptr)``: the CSR pattern of the velocity blocks (``M``, ``K``,
+        the convection's Jacobian: every element's 12 x 12 couplings) and the slot of each
+        local entry (:func:`~skfem_granular.fluid.convection.element_pattern`)."""
+        if self.reference is not self:
+            return self.reference.velocity_pattern
+        return element_pattern(self.sb.element_dofs)
 
     def K(self, viscous: str) -> sp.csr_matrix:
         """Unit-viscosity viscous block of the given form (``"symmetric"``/``"laplace"``).
