@@ -7,8 +7,8 @@ its contacts, ``delta_l``, ``dt``, default mesh kind (``auto``) and mesh motion
 (ALE); the paper's 20 x 10 mm box and the block's distance from the left wall
 scaled by n / 5, its distance from the floor (3 mm) kept. Each run is a
 subprocess of its own (its ``ru_maxrss`` is its peak memory), simulates a fixed
-window (50 ms) and writes no output files; ``gc.collect()`` runs after every
-step that remeshed (see :func:`simulate`; ``--no-gc``: not). The cost per
+window (50 ms) and writes no output files (``--gc``: ``gc.collect()`` after every
+step that remeshed, see :func:`simulate`). The cost per
 simulated millisecond (wall and CPU time) is reported for the whole run and for
 the steady part after the first :data:`WARMUP` steps (mesh building, first
 factorisations, kernel loading), with the phase times of the run's summary;
@@ -167,7 +167,7 @@ def difference(after: dict, before: dict) -> dict:
     return {k: round(v - before.get(k, 0.0), 6) for k, v in after.items()}
 
 
-def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = True) -> dict:
+def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = False) -> dict:
     """Run one scaled collapse in this process; the record of :data:`RUN_KEYS` but the load.
 
     Parameters
@@ -179,12 +179,13 @@ def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = True) 
     log : file, optional
         A progress line every 10 steps.
     collect : bool
-        ``gc.collect()`` after every step that remeshed (timed, inside the wall time):
-        the mesh a remesh drops sits in a reference cycle (its coupling's factor cache
-        holds a bound method of the coupling) with its sparse LU factors, which the
-        cyclic collector frees late; without it the peak memory grows with the number
-        of remeshes (25 grains, 50 ms, 17 remeshes: 1768 MB resident at the end, 539 MB
-        with the collections).
+        ``gc.collect()`` after every step that remeshed (timed, inside the wall time).
+        Up to commit 1e6e502 the mesh a remesh dropped sat in reference cycles (the
+        space's self-reference, the coupling's factor cache holding a bound method of the
+        coupling) with its sparse LU factors, which the cyclic collector freed late: the
+        peak memory grew with the number of remeshes (25 grains, 50 ms, 17 remeshes: 1768
+        MB resident at the end, 539 MB with the collections;
+        ``results/scaling_no_gc.json``). Since then reference counting frees them.
     """
     from skfem_granular.simulation import Simulation
 
@@ -263,10 +264,10 @@ def record(n, sim, wall, steady, steady_ms, marks, initial, steps, warmup) -> di
     }
 
 
-def run_child(n: int, t_end: float, warmup: int, collect: bool = True) -> dict:
+def run_child(n: int, t_end: float, warmup: int, collect: bool = False) -> dict:
     """:func:`simulate` in a fresh interpreter (its own peak memory), with the load around it."""
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child", str(n), str(t_end),
-           str(warmup), *([] if collect else ["--no-gc"])]
+           str(warmup), *(["--gc"] if collect else [])]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)}
     load0 = list(os.getloadavg())
@@ -369,7 +370,8 @@ def figure(data: dict, path: Path, no_gc: dict | None = None) -> None:
     path : Path
         The PNG to write.
     no_gc : dict, optional
-        Results of a ``--no-gc`` run: its peak memory is drawn beside.
+        Results of a run without ``gc.collect()`` on the library of 4e84a43 (reference
+        cycles): its peak memory is drawn beside.
     """
     import matplotlib
 
@@ -401,7 +403,7 @@ def figure(data: dict, path: Path, no_gc: dict | None = None) -> None:
     if no_gc is not None:
         fn = no_gc["fits"]["peak_mb_vs_grains"]
         a2.loglog([r["grains"] for r in no_gc["runs"]], [r["peak_mb"] for r in no_gc["runs"]],
-                  "x", color="C3", label=f"no gc.collect() after remeshes: slope "
+                  "x", color="C3", label=f"4e84a43 (reference cycles): slope "
                                          f"{fn['exponent']:.2f}")
     a2.loglog(gg, runs[0]["peak_mb"] * gg / g[0], "k:", lw=1, label="slope 1")
     a2.set_ylabel("peak memory (MB)")
@@ -517,13 +519,13 @@ def main(argv=None) -> dict | None:
     ap.add_argument("--refit", action="store_true",
                     help="no runs: regimes, fits and figure again from the results JSON")
     ap.add_argument("--no-figure", action="store_true")
-    ap.add_argument("--no-gc", action="store_true",
-                    help="no gc.collect() after remeshes (the library as it is; see simulate)")
+    ap.add_argument("--gc", action="store_true",
+                    help="gc.collect() after every remesh (see simulate)")
     ap.add_argument("--child", nargs=3, metavar=("N", "T_END", "WARMUP"), help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
         rec = simulate(int(a.child[0]), float(a.child[1]), int(a.child[2]), log=sys.stderr,
-                       collect=not a.no_gc)
+                       collect=a.gc)
         print(json.dumps(rec))
         return None
     mode = "smoke" if a.smoke else "full"
@@ -541,7 +543,7 @@ def main(argv=None) -> dict | None:
         data = {"benchmark": "scaling", "mode": mode, "commit": commit_id(),
                 "cpus": os.cpu_count(), "runs": []}
         for n, t_end in plan.items():
-            data["runs"].append(run_child(n, t_end, WARMUP[mode], collect=not a.no_gc))
+            data["runs"].append(run_child(n, t_end, WARMUP[mode], collect=a.gc))
             out.parent.mkdir(parents=True, exist_ok=True)
             out.write_text(json.dumps(data, indent=1) + "\n")  # kept after every run
     for r in data["runs"]:
