@@ -103,7 +103,7 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
     op = NavierStokesOperator(space, fluid, DirichletData(space, velocity), convection=convection,
                               viscous=viscous, body_force=body_force)
     times = {"setup": time.perf_counter() - t_start, "assembly": 0.0, "solve": 0.0}
-    lin = make_solver(solver, op.free.size)
+    lin = make_solver(solver, op.free.size, once=not convection)  # Stokes: one factorisation
     free = op.free
 
     def linear_solve(Jr, r, newton=False):
