@@ -19,6 +19,8 @@ import numpy as np
 import scipy.sparse as sp
 from skfem import Basis
 
+from .geometry import scatter_pattern
+
 
 def element_pattern(edofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The CSR pattern of every 12 x 12 element matrix of a P2 vector field on a mesh.
@@ -35,19 +37,14 @@ def element_pattern(edofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
         Value slot of local entry ``(e, i, c, j, d)`` (row ``2 edof_i + c``, column
         ``2 edof_j + d``).
     indices, indptr : int32 ndarray
-        The pattern, rows sorted.
+        The pattern (:func:`~skfem_granular.fluid.geometry.scatter_pattern`).
     """
     nloc, nel = edofs.shape
     nu = 2 * (int(edofs.max()) + 1)
     vdofs = 2 * edofs.T[:, :, None] + np.arange(2)[None, None, :]  # (nel, 6, 2)
     rows = np.broadcast_to(vdofs[:, :, :, None, None], (nel, nloc, 2, nloc, 2))
-    cols = np.broadcast_to(vdofs[:, None, None, :, :], rows.shape)
-    keys = rows.ravel().astype(np.int64) * nu + cols.ravel()
-    unique, slot = np.unique(keys, return_inverse=True)
-    indices = (unique % nu).astype(np.int32)
-    counts = np.bincount(unique // nu, minlength=nu)
-    indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
-    return slot.astype(np.int32), indices, indptr
+    return scatter_pattern(rows, np.broadcast_to(vdofs[:, None, None, :, :], rows.shape),
+                           (nu, nu))
 
 
 class ConvectionKernel:

@@ -44,6 +44,26 @@ def with_data(template: sp.csr_matrix, data: np.ndarray) -> sp.csr_matrix:
     return out
 
 
+def scatter_pattern(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The CSR pattern of element matrices scattered to ``(rows, cols)`` (any shape).
+
+    Returns
+    -------
+    slot : int32 ndarray
+        Value slot of each local entry (``rows.ravel()`` order).
+    indices, indptr : int32 ndarray
+        The pattern, rows sorted, no duplicates.
+    """
+    keys = rows.ravel().astype(np.int64) * shape[1] + cols.ravel()
+    unique, slot = np.unique(keys, return_inverse=True)
+    indices = (unique % shape[1]).astype(np.int32)
+    counts = np.bincount(unique // shape[1], minlength=shape[0])
+    indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
+    # 32-bit slots halve what the compiled pass reads (the patterns stay far below 2^31)
+    return slot.astype(np.int32), indices, indptr
+
+
 def affine_maps(p: np.ndarray, t: np.ndarray):
     """``A`` ``(nel, 2, 2)``, ``Ainv`` and ``det A`` ``(nel,)`` of every triangle of ``(p, t)``."""
     p0 = p[:, t[0]]
@@ -62,16 +82,9 @@ class _Pattern:
 
     def __init__(self, rows: np.ndarray | None, cols: np.ndarray | None,
                  shape: tuple[int, int], known: tuple | None = None):
-        if known is None:
-            keys = rows.ravel().astype(np.int64) * shape[1] + cols.ravel()
-            unique, slot = np.unique(keys, return_inverse=True)
-            self.indices = (unique % shape[1]).astype(np.int32)
-            counts = np.bincount(unique // shape[1], minlength=shape[0])
-            self.indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
-        else:  # ``(slot, indices, indptr)`` of the same scatter, built elsewhere
-            slot, self.indices, self.indptr = known
-        # 32-bit slots halve what the compiled pass reads (the patterns stay far below 2^31)
-        self.slot = slot.astype(np.int32) if slot.dtype != np.int32 else slot
+        # ``known``: ``(slot, indices, indptr)`` of the same scatter, built elsewhere
+        self.slot, self.indices, self.indptr = (scatter_pattern(rows, cols, shape)
+                                                if known is None else known)
         self.shape = shape
         self._template = sp.csr_matrix((np.zeros(self.indices.size), self.indices,
                                         self.indptr), shape=shape)
@@ -201,11 +214,16 @@ class ReferenceBlocks:
     def pressure_mass(self, p: np.ndarray) -> sp.csr_matrix:
         """The P1 pressure mass matrix of the mesh at ``p`` (no check for inverted
         triangles: ``p`` is a moved space's, checked when it was made)."""
+        return self.pp.csr(self._Mp_of_det @ self._oriented_dets(p))
+
+    def _oriented_dets(self, p: np.ndarray) -> np.ndarray:
+        """``det A`` of every triangle at ``p`` times its reference orientation (``> 0``:
+        valid, ``|det A|``)."""
         t = self.t
         x, y = p[0], p[1]
         x0, y0 = x[t[0]], y[t[0]]
         det = ((x[t[1]] - x0) * (y[t[2]] - y0) - (x[t[2]] - x0) * (y[t[1]] - y0))
-        return self.pp.csr(self._Mp_of_det @ (det * self.orientation))
+        return det * self.orientation
 
     def check(self, p: np.ndarray) -> None:
         """Raise when a triangle is inverted (orientation changed) or degenerate at ``p``
@@ -216,11 +234,7 @@ class ReferenceBlocks:
         ValueError
             Naming the triangle and its signed area.
         """
-        t = self.t
-        x, y = p[0], p[1]
-        x0, y0 = x[t[0]], y[t[0]]
-        det = ((x[t[1]] - x0) * (y[t[2]] - y0) - (x[t[2]] - x0) * (y[t[1]] - y0))
-        det *= self.orientation
+        det = self._oriented_dets(p)
         if not np.all(det > 0):
             k = int(np.argmin(det))
             raise ValueError(f"mesh motion: triangle {k} is inverted or degenerate "

@@ -121,16 +121,16 @@ class TaylorHood:
         return self.reference_blocks.moved(self.mesh.p, check=False,
                                            parts=("M", "B", "convection") + forms_in_use)
 
-    def _moved_block(self, name: str):
+    def _geometric_block(self, name: str):
         """A geometric block of this space (moved or not), from reference-element data: one
         compiled pass over the triangles instead of scikit-fem's ``asm`` of
         :mod:`~skfem_granular.fluid.forms` (the same matrices to 1e-13, tested; a remesh
         builds them for every new mesh)."""
-        if self.reference is self:
-            return self.reference_blocks.moved(self.mesh.p, check=False, parts=(name,))[name]
-        if name not in self._moved_geometry:  # a viscous form nobody asked for before
-            return self.reference_blocks.moved(self.mesh.p, check=False, parts=(name,))[name]
-        return self._moved_geometry[name]
+        # a moved space builds its blocks together (a viscous form nobody asked for before
+        # is built on its own)
+        if self.reference is not self and name in self._moved_geometry:
+            return self._moved_geometry[name]
+        return self.reference_blocks.moved(self.mesh.p, check=False, parts=(name,))[name]
 
     # unknowns per element, for fill-reducing orderings -------------------
     @cached_property
@@ -167,22 +167,22 @@ class TaylorHood:
     @cached_property
     def M(self) -> sp.csr_matrix:
         """Velocity mass matrix ``(u, v)``."""
-        return self._moved_block("M")
+        return self._geometric_block("M")
 
     @cached_property
     def K_symmetric(self) -> sp.csr_matrix:
         """``2 (eps(u), eps(v))``; multiply by the viscosity."""
-        return self._moved_block("K_symmetric")
+        return self._geometric_block("K_symmetric")
 
     @cached_property
     def K_laplace(self) -> sp.csr_matrix:
         """``(grad u, grad v)``; multiply by the viscosity."""
-        return self._moved_block("K_laplace")
+        return self._geometric_block("K_laplace")
 
     @cached_property
     def B(self) -> sp.csr_matrix:
         """Divergence block ``-(q, div u)``, shape ``(np_, nu)``."""
-        return self._moved_block("B")
+        return self._geometric_block("B")
 
     @cached_property
     def Mp(self) -> sp.csr_matrix:
