@@ -54,6 +54,32 @@ def test_moved_blocks_equal_scikit_fem_assembly():
         space.moved(bad)
 
 
+def test_space_numbering_without_bases_equals_scikit_fem_bases():
+    """A space's DOF numbering, DOF locations, components, boundary DOFs, quadrature and
+    P1 -> P2 map (built without scikit-fem bases) equal the bases' own; a Stokes solve
+    builds no basis."""
+    mesh = box(0.0, 0.0, 1.0, 0.5, 0.02)
+    space = sg.TaylorHood(mesh)
+    flow = sg.solve_steady(space, sg.Fluid(1.0, NU), {"left": (1.0, 0.0), "bottom": (0, 0),
+                                                      "top": (0, 0)})
+    assert np.isfinite(flow.x).all()
+    assert not {"ub", "pb", "sb"} & set(space.__dict__)  # nothing asked for a basis
+    velocity_doflocs, component = space.velocity_doflocs, space.component
+    left, p_left = space.boundary_dofs("left"), space.pressure_boundary_dofs("left")
+    P = space.p1_to_p2
+    ub, pb, sb = space.ub, space.pb, space.sb  # now built
+    assert np.array_equal(velocity_doflocs, ub.doflocs)
+    for c, idx in enumerate(ub.split_indices()):
+        assert np.all(component[idx] == c)
+    assert np.array_equal(left, np.sort(ub.get_dofs("left").all()))
+    assert np.array_equal(p_left, np.sort(pb.get_dofs("left").all()))
+    assert np.array_equal(space.quadrature[0], sb.X) and np.array_equal(space.quadrature[1], sb.W)
+    assert np.array_equal(space.incidence.indices, sg.TaylorHood(mesh).incidence.indices)
+    # P2 nodes of a linear pressure field: exact
+    f = 2.0 * pb.doflocs[0] - 3.0 * pb.doflocs[1] + 0.5
+    assert np.abs(P @ f - (2.0 * sb.doflocs[0] - 3.0 * sb.doflocs[1] + 0.5)).max() <= 1e-14
+
+
 @pytest.mark.parametrize("convection", [True, False])
 def test_uniform_flow_stays_uniform_on_a_moving_mesh(convection):
     """Geometric conservation: u = (1, 0.5) on every boundary, the interior oscillating

@@ -79,9 +79,9 @@ class ConvectionKernel:
         sb = scalar_basis
         self.edofs = sb.element_dofs  # (6, nel)
         nloc = self.edofs.shape[0]
-        self.phi = np.array([np.asarray(sb.basis[i][0]) for i in range(nloc)])  # (6, nel, nq)
-        self.dphi = np.array([sb.basis[i][0].grad for i in range(nloc)])  # (6, 2, nel, nq)
-        self.dx = sb.dx  # (nel, nq)
+        phi = np.array([np.asarray(sb.basis[i][0]) for i in range(nloc)])  # (6, nel, nq)
+        dphi = np.array([sb.basis[i][0].grad for i in range(nloc)])  # (6, 2, nel, nq)
+        dx = sb.dx  # (nel, nq)
         self.nu = 2 * sb.N
         #: value slot of local entry (e, i, c, j, d) in :attr:`pattern` (int32)
         self.slot, self._indices, self._indptr = (element_pattern(self.edofs) if pattern is None
@@ -89,12 +89,13 @@ class ConvectionKernel:
         # element-major tables for batched matrix products (numpy.matmul over elements):
         # _tab[e] stacks the values, x- and y-derivatives of the 6 basis functions at the
         # quadrature points, (3 nq, 6); _wphi[e] = phi_i(q) dx(q), (6, nq)
-        nq = self.dx.shape[1]
+        # (the values and gradients themselves are not kept: 20 MB at 95k DOFs)
+        nq = dx.shape[1]
         self._nq = nq
         self._tab = np.ascontiguousarray(np.concatenate(
-            [self.phi.transpose(1, 2, 0), self.dphi[:, 0].transpose(1, 2, 0),
-             self.dphi[:, 1].transpose(1, 2, 0)], axis=1))  # (nel, 3 nq, 6)
-        self._wphi = np.ascontiguousarray((self.phi * self.dx).transpose(1, 0, 2))  # (nel, 6, nq)
+            [phi.transpose(1, 2, 0), dphi[:, 0].transpose(1, 2, 0),
+             dphi[:, 1].transpose(1, 2, 0)], axis=1))  # (nel, 3 nq, 6)
+        self._wphi = np.ascontiguousarray((phi * dx).transpose(1, 0, 2))  # (nel, 6, nq)
         self._edofs_e = np.ascontiguousarray(self.edofs.T, dtype=np.int64)  # (nel, 6)
         self._jac_tables = None  # built on the first jacobian() call
 
@@ -106,7 +107,6 @@ class ConvectionKernel:
         (:meth:`~skfem_granular.fluid.geometry.ReferenceBlocks.moved` builds the tables)."""
         new = copy.copy(self)
         new._tab, new._wphi = tab, wphi
-        new.dphi = new.dx = None  # the reference mesh's: not those of the moved one
         new._jac_tables = None
         return new
 

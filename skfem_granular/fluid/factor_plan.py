@@ -84,8 +84,10 @@ class FactorPlan:
         CT = sp.csc_matrix((P.data, inv[P.indices], P.indptr), shape=(n, n))
         CT.sort_indices()
         src = np.rint(CT.data).astype(np.int64) - 1  # position in U of each CT entry
-        self.gather_a = np.where(a_id[src] > 0, a_id[src] - 1, nnz)  # nnz: the zero slot
-        self.gather_r = np.where(r_id[src] > 0, r_id[src] - 1, r_vals.size)
+        # 32-bit gathers (patterns stay far below 2^31 entries): 10 MB less per plan at 95k
+        index = np.int32 if max(nnz, r_vals.size) < 2**31 - 1 else np.int64
+        self.gather_a = np.where(a_id[src] > 0, a_id[src] - 1, nnz).astype(index)  # nnz: 0
+        self.gather_r = np.where(r_id[src] > 0, r_id[src] - 1, r_vals.size).astype(index)
         self.ct_indices, self.ct_indptr = CT.indices.copy(), CT.indptr.copy()
 
     def scale(self, data: np.ndarray) -> tuple[float, np.ndarray, float]:

@@ -129,7 +129,7 @@ class ReferenceBlocks:
         # scikit-fem does not orient triangles: a moved triangle is inverted when its
         # orientation differs from the reference one
         self.orientation = np.sign(affine_maps(mesh.p, mesh.t)[2])
-        X, W = space.sb.X, space.sb.W
+        X, W = space.quadrature
         p2, p1 = ElementTriP2(), ElementTriP1()
         phi = np.array([p2.lbasis(X, i)[0] for i in range(6)])  # (6, nq)
         dphi = np.array([p2.lbasis(X, i)[1] for i in range(6)])  # (6, 2, nq)
@@ -139,9 +139,9 @@ class ReferenceBlocks:
         self.S = np.einsum("ikq,jlq,q->klij", dphi, dphi, W)  # (2, 2, 6, 6)
         self.S4 = np.ascontiguousarray(self.S.reshape(4, 36))
         self.E = np.einsum("mq,jkq,q->kmj", psi, dphi, W)  # (2, 3, 6)
-        sdofs = space.sb.element_dofs.T  # (nel, 6)
+        sdofs = space.scalar_dofs.element_dofs.T  # (nel, 6)
         vdofs = (2 * sdofs[:, :, None] + np.arange(2)).reshape(-1, 12)  # (nel, 12): 2 i + c
-        pdofs = space.pb.element_dofs.T  # (nel, 3)
+        pdofs = space.pressure_dofs.element_dofs.T  # (nel, 3)
         nel = sdofs.shape[0]
         nu, np_ = space.nu, space.np_
         # the velocity pattern is the convection kernel's: entry (e, i, c, j, d) at row

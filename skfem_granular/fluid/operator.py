@@ -95,7 +95,8 @@ class NavierStokesOperator:
         new.K = with_data(Kv, self.fluid.viscosity * Kv.data)
         new._velocity_blocks = {}
         new._conv_positions = None
-        for cached in ("_reduced_pattern", "_pressure_weights", "_free_pressure_blocks"):
+        for cached in ("_reduced_pattern", "_pressure_weights", "_free_pressure_mass",
+                       "_free_pressure_laplace"):
             new.__dict__.pop(cached, None)  # geometric caches: the moved mesh's own
         if self._body_force_spec is not None:
             new.f = new._body_force(self._body_force_spec)
@@ -275,7 +276,9 @@ class NavierStokesOperator:
         full = sp.vstack([sp.hstack([Kp, Bt], format="csr"), Bl], format="csr")
         R = self.reduced(full)
         R.sort_indices()
-        return R.indices.copy(), R.indptr.copy(), R.data.astype(np.int64) - 1
+        gather = np.rint(R.data).astype(np.int64) - 1
+        index = np.int32 if ids.size < 2**31 - 1 else np.int64
+        return R.indices.copy(), R.indptr.copy(), gather.astype(index)
 
     # residuals ----------------------------------------------------------------
     def residual(self, x: np.ndarray, c_mass: float = 0.0, rhs_u: np.ndarray | None = None,
@@ -325,16 +328,23 @@ class NavierStokesOperator:
 
         The blocks are built once per operator and shared: do not modify them.
         """
-        Mp, Lp = self._free_pressure_blocks
-        return dict(Mp=Mp, Lp=Lp, eta=self.fluid.viscosity, a0rho=c_mass * self.fluid.density,
-                    ordering=self.ordering)
+        # the pressure Laplacian only serves the Krylov solver's Schur approximation of a
+        # time step (a0 rho Lp^-1); a steady solve never builds it (nor the basis it needs)
+        Lp = self._free_pressure_laplace if c_mass > 0 else None
+        return dict(Mp=self._free_pressure_mass, Lp=Lp, eta=self.fluid.viscosity,
+                    a0rho=c_mass * self.fluid.density, ordering=self.ordering)
 
     @cached_property
-    def _free_pressure_blocks(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-        """Pressure mass and Laplace matrices restricted to the free pressures."""
-        sp_ = self.space
-        pfree = self.free[self.nu_free:] - sp_.nu
-        return sp_.Mp[pfree][:, pfree], sp_.Lp[pfree][:, pfree]
+    def _free_pressure_mass(self) -> sp.csr_matrix:
+        """Pressure mass matrix restricted to the free pressures."""
+        pfree = self.free[self.nu_free:] - self.space.nu
+        return self.space.Mp[pfree][:, pfree]
+
+    @cached_property
+    def _free_pressure_laplace(self) -> sp.csr_matrix:
+        """Pressure Laplace matrix restricted to the free pressures."""
+        pfree = self.free[self.nu_free:] - self.space.nu
+        return self.space.Lp[pfree][:, pfree]
 
     @cached_property
     def ordering(self) -> np.ndarray:

@@ -14,6 +14,8 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 from skfem import Basis, ElementTriP1, ElementTriP2, ElementVector, FacetBasis, MeshTri, asm
+from skfem.assembly import Dofs
+from skfem.quadrature import get_quadrature
 
 from . import forms
 from .convection import ConvectionKernel, element_pattern
@@ -37,7 +39,10 @@ class TaylorHood:
     Attributes
     ----------
     ub, pb, sb : skfem.Basis
-        Vector P2, P1 pressure and scalar P2 bases (same quadrature).
+        Vector P2, P1 pressure and scalar P2 bases (same quadrature), built on first
+        use: the solvers need only the DOF numbering (:attr:`velocity_dofs`,
+        :attr:`pressure_dofs`, :attr:`scalar_dofs`), and the bases' values at every
+        quadrature point are the largest arrays of a space (100 MB at 95k DOFs).
     nu, np_ : int
         Number of velocity and pressure DOFs; the unknown vector is
         ``x = [u, p]`` of length ``nu + np_``.
@@ -48,16 +53,16 @@ class TaylorHood:
             raise ValueError(f"mesh: a skfem.MeshTri is required, got {type(mesh).__name__}")
         self.mesh = mesh
         self.intorder = intorder
-        self.ub = Basis(mesh, ElementVector(ElementTriP2()), intorder=intorder)
-        self.pb = self.ub.with_element(ElementTriP1())
-        self.sb = self.ub.with_element(ElementTriP2())
-        self.nu = self.ub.N
-        self.np_ = self.pb.N
+        self.velocity_dofs = Dofs(mesh, ElementVector(ElementTriP2()))
+        self.pressure_dofs = Dofs(mesh, ElementTriP1())
+        self.scalar_dofs = Dofs(mesh, ElementTriP2())
+        self.nu = self.velocity_dofs.N
+        self.np_ = self.pressure_dofs.N
         self.N = self.nu + self.np_
         self._viscous_forms = set()  # the viscous forms asked for (see K)
 
     def __getattr__(self, name):
-        # a moved space (see moved()) builds its scikit-fem bases only when asked for them
+        # the scikit-fem bases are built only when something asks for them
         if name in ("ub", "pb", "sb") and "mesh" in self.__dict__:
             ub = Basis(self.mesh, ElementVector(ElementTriP2()), intorder=self.intorder)
             self.__dict__.update(ub=ub, pb=ub.with_element(ElementTriP1()),
@@ -108,7 +113,8 @@ class TaylorHood:
         mesh = dataclasses.replace(ref.mesh, doflocs=p, sort_t=False)
         d.update(mesh=mesh, intorder=ref.intorder,
                  nu=ref.nu, np_=ref.np_, N=ref.N, _reference=ref, reference_blocks=rb)
-        for topo in ("component", "all_boundary_dofs", "incidence", "p1_to_p2"):
+        for topo in ("velocity_dofs", "pressure_dofs", "scalar_dofs", "component",
+                     "all_boundary_dofs", "incidence", "p1_to_p2"):
             d[topo] = getattr(ref, topo)
         return new
 
@@ -136,7 +142,8 @@ class TaylorHood:
     @cached_property
     def incidence(self) -> sp.csr_matrix:
         """Element-to-unknown incidence ``(nelements, N)`` of ``x = [u, p]``."""
-        return element_incidence([self.ub.element_dofs, self.pb.element_dofs + self.nu], self.N)
+        return element_incidence([self.velocity_dofs.element_dofs,
+                                  self.pressure_dofs.element_dofs + self.nu], self.N)
 
     def ordering(self, columns: sp.spmatrix | np.ndarray, method: str = "minimum_degree"
                  ) -> np.ndarray:
@@ -200,7 +207,9 @@ class TaylorHood:
         if self.reference is not self:
             g = self._moved_geometry
             return self.reference.convection.with_tables(g["tab"], g["wphi"])
-        return ConvectionKernel(self.sb, pattern=self.velocity_pattern)
+        # the scalar basis only while the kernel takes its tables (unless already built)
+        sb = self.__dict__.get("sb") or Basis(self.mesh, ElementTriP2(), intorder=self.intorder)
+        return ConvectionKernel(sb, pattern=self.velocity_pattern)
 
     @cached_property
     def velocity_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -209,7 +218,7 @@ class TaylorHood:
         local entry (:func:`~skfem_granular.fluid.convection.element_pattern`)."""
         if self.reference is not self:
             return self.reference.velocity_pattern
-        return element_pattern(self.sb.element_dofs)
+        return element_pattern(self.scalar_dofs.element_dofs)
 
     def K(self, viscous: str) -> sp.csr_matrix:
         """Unit-viscosity viscous block of the given form (``"symmetric"``/``"laplace"``).
@@ -239,17 +248,17 @@ class TaylorHood:
         """Velocity DOFs (both components) on boundary ``name``, sorted."""
         self.check_boundary(name, "boundary")
         ref = self.reference
-        return np.sort(ref.ub.get_dofs(ref.mesh.boundaries[name]).all())
+        return np.sort(ref.velocity_dofs.get_facet_dofs(ref.mesh.boundaries[name]).all())
 
     def pressure_boundary_dofs(self, name: str) -> np.ndarray:
         """Pressure DOFs on boundary ``name``."""
         ref = self.reference
-        return np.sort(ref.pb.get_dofs(ref.mesh.boundaries[name]).all())
+        return np.sort(ref.pressure_dofs.get_facet_dofs(ref.mesh.boundaries[name]).all())
 
     @cached_property
     def all_boundary_dofs(self) -> np.ndarray:
         """Velocity DOFs on the whole boundary of the mesh."""
-        return np.sort(self.ub.get_dofs(self.mesh.boundary_facets()).all())
+        return np.sort(self.velocity_dofs.get_facet_dofs(self.mesh.boundary_facets()).all())
 
     def vertex_field(self, v: np.ndarray) -> np.ndarray:
         """Velocity DOFs ``(nu,)`` of the piecewise-linear vector field with vertex values
@@ -264,7 +273,7 @@ class TaylorHood:
     def velocity_doflocs(self) -> np.ndarray:
         """Coordinates ``(2, nu)`` of each velocity DOF."""
         if self.reference is self:
-            return self.ub.doflocs
+            return self._reference_doflocs(ElementVector(ElementTriP2()), self.velocity_dofs)
         # affine triangles: P2 nodes are vertices and edge midpoints, linear in the vertices
         P = self.p1_to_p2
         out = np.empty((2, self.nu))
@@ -272,18 +281,32 @@ class TaylorHood:
             out[c, 0::2] = out[c, 1::2] = P @ self.mesh.p[c]
         return out
 
+    def _reference_doflocs(self, elem, dofs: Dofs) -> np.ndarray:
+        """DOF locations ``(2, N)`` of ``elem`` on the mesh as built, as scikit-fem's
+        bases compute them (without building a basis)."""
+        mapped = self.mesh._mapping().F(elem.doflocs.T)  # (2, nel, nlocal)
+        out = np.zeros((mapped.shape[0], dofs.N))
+        for i in range(mapped.shape[0]):
+            for j in range(dofs.element_dofs.shape[0]):
+                out[i, dofs.element_dofs[j]] = mapped[i, :, j]
+        return out
+
+    @cached_property
+    def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
+        """Reference quadrature points ``(2, nq)`` and weights ``(nq,)`` of every basis."""
+        return get_quadrature(self.mesh.refdom, self.intorder)
+
     @cached_property
     def component(self) -> np.ndarray:
         """Component (0 = x, 1 = y) of each velocity DOF."""
-        comp = np.empty(self.nu, dtype=np.int8)
-        for c, idx in enumerate(self.ub.split_indices()):
-            comp[idx] = c
+        # scikit-fem numbers a vector element's DOFs component-interleaved: 2 k + c
+        comp = (np.arange(self.nu) % 2).astype(np.int8)
         return comp
 
     def facet_basis(self, name: str, element: str = "velocity") -> FacetBasis:
         """A facet basis on boundary ``name`` (velocity or pressure element)."""
         self.check_boundary(name, "boundary")
-        elem = self.ub.elem if element == "velocity" else self.pb.elem
+        elem = ElementVector(ElementTriP2()) if element == "velocity" else ElementTriP1()
         return FacetBasis(self.mesh, elem, facets=self.mesh.boundaries[name],
                           intorder=self.intorder)
 
@@ -299,12 +322,13 @@ class TaylorHood:
 
         ref = np.array([[0.0, 1.0, 0.0, 0.5, 0.5, 0.0],
                         [0.0, 0.0, 1.0, 0.0, 0.5, 0.5]])
-        edofs = self.sb.element_dofs  # (6, nel)
+        edofs = self.scalar_dofs.element_dofs  # (6, nel)
         nodes, first = np.unique(edofs.ravel(), return_index=True)
         local, cells = np.unravel_index(first, edofs.shape)
-        E = evaluation_matrix(self.pb, cells, ref[:, local])
-        out = sp.csr_matrix((self.sb.N, self.np_))
-        out = E[np.argsort(nodes)] if nodes.size == self.sb.N else out
+        p1 = _Numbering(ElementTriP1(), self.pressure_dofs)
+        E = evaluation_matrix(p1, cells, ref[:, local])
+        out = sp.csr_matrix((self.scalar_dofs.N, self.np_))
+        out = E[np.argsort(nodes)] if nodes.size == self.scalar_dofs.N else out
         return sp.csr_matrix(out)
 
     @cached_property
@@ -326,3 +350,11 @@ class TaylorHood:
 
         rhs = asm(curl_form, self.sb, u=self.ub.interpolate(u))
         return self._scalar_mass_lu.solve(rhs)
+
+
+class _Numbering:
+    """What :func:`~skfem_granular.fluid.points.evaluation_matrix` reads of a basis: its
+    element and DOF numbering (no basis values)."""
+
+    def __init__(self, elem, dofs: Dofs):
+        self.elem, self.element_dofs, self.N = elem, dofs.element_dofs, dofs.N
