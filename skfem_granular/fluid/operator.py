@@ -254,6 +254,8 @@ class NavierStokesOperator:
                 pos = np.minimum(pos, keys_n.size - 1)
                 if not np.array_equal(keys_n[pos], keys_a):
                     pos = None
+                elif keys_n.size < 2**31 - 1:
+                    pos = pos.astype(np.int32)  # half the memory (patterns below 2^31)
             self._conv_positions = (A, pos)
         return self._conv_positions[1]
 
