@@ -1,8 +1,8 @@
 """The Taylor-Hood P2/P1 discretisation of one mesh.
 
-:class:`TaylorHood` owns the scikit-fem bases, the constant blocks (``M``,
-``K`` in both viscous forms, ``B``), the convection kernel and the DOF maps
-of the named boundaries. It is built once per mesh and shared by the steady
+:class:`TaylorHood` owns the DOF numbering, the scikit-fem bases (built when
+asked for), the constant blocks (``M``, ``K`` in both viscous forms, ``B``), the
+convection kernel and the DOF maps of the named boundaries. It is built once per mesh and shared by the steady
 and unsteady solvers and by the force evaluation.
 """
 
@@ -40,9 +40,11 @@ class TaylorHood:
     ----------
     ub, pb, sb : skfem.Basis
         Vector P2, P1 pressure and scalar P2 bases (same quadrature), built on first
-        use: the solvers need only the DOF numbering (:attr:`velocity_dofs`,
-        :attr:`pressure_dofs`, :attr:`scalar_dofs`), and the bases' values at every
+        use: the solvers need only the DOF numbering, and the bases' values at every
         quadrature point are the largest arrays of a space (100 MB at 95k DOFs).
+    velocity_dofs, pressure_dofs, scalar_dofs : skfem.assembly.Dofs
+        The DOF numbering of those three elements (``element_dofs``, ``N``,
+        ``get_facet_dofs``), the same as the bases'.
     nu, np_ : int
         Number of velocity and pressure DOFs; the unknown vector is
         ``x = [u, p]`` of length ``nu + np_``.
