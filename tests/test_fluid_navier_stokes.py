@@ -137,3 +137,4 @@ def test_convection_kernel_equals_scikit_fem_forms(moved):
     J = asm(forms.convection_newton, ub, wind=ub.interpolate(u))
     assert np.abs(kern.jacobian_action(u, du) - J @ du).max() <= 1e-13 * scale
     assert abs(kern.jacobian(u) - J).max() <= 1e-13 * abs(J).max()
+    assert abs(kern.jacobian(u, newton=False) - N(u)).max() <= 1e-13 * abs(N(u)).max()

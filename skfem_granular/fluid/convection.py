@@ -4,9 +4,8 @@ scikit-fem's generic ``asm`` re-evaluates basis functions on every call. The
 convection term is the only state-dependent block of the Navier-Stokes
 system, so :class:`ConvectionKernel` keeps the P2 basis values, gradients and
 quadrature weights per element and evaluates ``N(a) b`` vectors and the Newton
-Jacobian's action in one compiled pass over the triangles
-(:mod:`~skfem_granular.fluid.convection_numba`), and the Jacobian matrix itself
-with batched ``numpy.matmul`` into a fixed sparsity pattern. The results equal the forms
+Jacobian's action, and the Jacobian matrix on a fixed sparsity pattern, each in one
+compiled pass over the triangles (:mod:`~skfem_granular.fluid.convection_numba`). The results equal the forms
 :data:`~skfem_granular.fluid.forms.convection` and
 :data:`~skfem_granular.fluid.forms.convection_newton` (tested).
 """
@@ -86,8 +85,7 @@ class ConvectionKernel:
         #: value slot of local entry (e, i, c, j, d) in :attr:`pattern` (int32)
         self.slot, self._indices, self._indptr = (element_pattern(self.edofs) if pattern is None
                                                   else pattern)
-        # element-major tables for batched matrix products (numpy.matmul over elements):
-        # _tab[e] stacks the values, x- and y-derivatives of the 6 basis functions at the
+        # element-major tables for the compiled passes: _tab[e] stacks the values, x- and y-derivatives of the 6 basis functions at the
         # quadrature points, (3 nq, 6); _wphi[e] = phi_i(q) dx(q), (6, nq)
         # (the values and gradients themselves are not kept: 20 MB at 95k DOFs)
         nq = dx.shape[1]
@@ -97,7 +95,6 @@ class ConvectionKernel:
              dphi[:, 1].transpose(1, 2, 0)], axis=1))  # (nel, 3 nq, 6)
         self._wphi = np.ascontiguousarray((phi * dx).transpose(1, 0, 2))  # (nel, 6, nq)
         self._edofs_e = np.ascontiguousarray(self.edofs.T, dtype=np.int64)  # (nel, 6)
-        self._jac_tables = None  # built on the first jacobian() call
 
     def with_tables(self, tab: np.ndarray, wphi: np.ndarray) -> ConvectionKernel:
         """The same kernel on a moved mesh, from its element tables: ``tab``
@@ -107,32 +104,7 @@ class ConvectionKernel:
         (:meth:`~skfem_granular.fluid.geometry.ReferenceBlocks.moved` builds the tables)."""
         new = copy.copy(self)
         new._tab, new._wphi = tab, wphi
-        new._jac_tables = None
         return new
-
-    def _jacobian_tables(self):
-        """Tables for :meth:`jacobian`, built once (the unsteady chord iteration never needs them).
-
-        ``W[e, (i, j), q] = phi_i phi_j dx`` (nel, 36, nq); the x- and y-derivatives of the
-        basis as contiguous (nel, nq, 6) arrays; the matrix slots of the local entries in
-        (e, i, j, c, d) order. Per slot the contributions still add up in element order, so
-        the sums are the same as in (e, i, c, j, d) order.
-        """
-        if self._jac_tables is None:
-            nel, nloc, nq = self._wphi.shape[0], self._wphi.shape[1], self._nq
-            W = np.ascontiguousarray(
-                (self._wphi[:, :, None, :] * self._tab[:, :nq, :].transpose(0, 2, 1)[:, None, :, :])
-                .reshape(nel, nloc * nloc, nq))
-            dphix = np.ascontiguousarray(self._tab[:, nq:2 * nq])
-            dphiy = np.ascontiguousarray(self._tab[:, 2 * nq:])
-            slot = self.slot.reshape(nel, nloc, 2, nloc, 2).transpose(0, 1, 3, 2, 4).ravel()
-            self._jac_tables = (W, dphix, dphiy, slot)
-        return self._jac_tables
-
-    def _element_fields(self, a: np.ndarray) -> np.ndarray:
-        """``(nel, 3 nq, 2)``: value, x- and y-derivative of both components of ``a``."""
-        A = a.reshape(-1, 2)[self.edofs.T]  # (nel, 6, 2)
-        return np.matmul(self._tab, A)
 
     def apply(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vector of ``((a . grad) b, v_i)`` for all test functions ``v_i``."""
@@ -185,22 +157,9 @@ class ConvectionKernel:
             ``True``: full Newton Jacobian ``N(u) . + N(.) u``; ``False``:
             Picard (Oseen) matrix ``N(u)``.
         """
-        W, dphix, dphiy, slot = self._jacobian_tables()
-        F = self._element_fields(u)  # (nel, 3 nq, 2)
-        nq, wphi = self._nq, self._wphi
-        nel, nloc = wphi.shape[0], wphi.shape[1]
-        # term 1: delta_cd phi_i (u . grad phi_j)
-        ux = np.ascontiguousarray(F[:, :nq, 0])[:, :, None]
-        uy = np.ascontiguousarray(F[:, :nq, 1])[:, :, None]
-        T1 = np.matmul(wphi, dphix * ux + dphiy * uy)  # (nel, i, j)
-        if newton:
-            # term 2: phi_i phi_j d_d u_c, as (nel, i, j, c, d)
-            G = np.stack([F[:, nq:2 * nq], F[:, 2 * nq:]], axis=-1).reshape(nel, nq, 4)
-            local = np.matmul(W, G).reshape(nel, nloc, nloc, 2, 2)
-            local[..., 0, 0] += T1
-            local[..., 1, 1] += T1
-        else:
-            local = np.zeros((nel, nloc, nloc, 2, 2))
-            local[..., 0, 0] = T1
-            local[..., 1, 1] = T1
-        return np.bincount(slot, weights=local.ravel(), minlength=self._indices.size)
+        from .convection_numba import convection_jacobian
+
+        out = np.zeros(self._indices.size)
+        convection_jacobian(np.ascontiguousarray(u, dtype=float), bool(newton), self._edofs_e,
+                            self._tab, self._wphi, self.slot, out)
+        return out

@@ -1,4 +1,4 @@
-"""Compiled convection vectors (one pass over the triangles).
+"""Compiled convection vectors and Jacobians (one pass over the triangles each).
 
 :func:`convection_vector` is the kernel behind
 :meth:`~skfem_granular.fluid.convection.ConvectionKernel.apply` and
@@ -8,7 +8,9 @@ quadrature points from the kernel's element tables and adds ``((wind . grad) b, 
 into the global vector. The formulas are those of the numpy version in
 :mod:`~skfem_granular.fluid.convection`; the element vectors are added in the element
 order of its ``numpy.bincount`` scatter, so only the per-element sums are ordered
-differently (round-off).
+differently (round-off). :func:`convection_jacobian` adds the element matrices of the
+linearised term into the values of the kernel's fixed pattern
+(:meth:`~skfem_granular.fluid.convection.ConvectionKernel.jacobian_data`).
 
 Compiled with numba at the first call (:func:`~skfem_granular._jit.lazy_njit`,
 ``cache=True``).
@@ -80,3 +82,79 @@ def convection_vector(a, ca, w, cw, b, edofs, tab, wphi, out):  # pragma: no cov
                 for q in range(nq):
                     s += wphi[e, i, q] * adv[q, c]
                 out[2 * k + c] += s
+
+
+@lazy_njit  # numba.njit(cache=True) at the first call
+def convection_jacobian(u, newton, edofs, tab, wphi, slot, out):  # pragma: no cover (compiled)
+    """Add the element matrices of the convection term linearised at ``u`` to ``out``.
+
+    Entry ``(i, c, j, d)`` of a triangle's matrix (row ``2 edof_i + c``, column
+    ``2 edof_j + d``) is ``delta_cd (phi_i, u . grad phi_j)``, plus with ``newton``
+    ``(phi_i phi_j, d_d u_c)``; it is added at ``out[slot[144 e + 24 i + 12 c + 2 j + d]]``
+    (the kernel's pattern), element after element as the numpy version's ``bincount``
+    adds them. No per-element tables beyond the kernel's own are needed.
+
+    Parameters
+    ----------
+    u : (nu,) ndarray
+        The wind (P2 vector field).
+    newton : bool
+        Add the term ``N(.) u`` of the full Newton linearisation.
+    edofs, tab, wphi
+        As for :func:`convection_vector`.
+    slot : (nel * 144,) int ndarray
+        Value slot of every local entry in ``(e, i, c, j, d)`` order.
+    out : ndarray
+        Values on the pattern, accumulated into.
+    """
+    nel = edofs.shape[0]
+    nq = wphi.shape[2]
+    lu = np.empty((6, 2))
+    uq = np.empty((nq, 2))
+    grad = np.empty((nq, 2, 2))  # (q, c, d): d_d u_c
+    adv = np.empty((nq, 6))  # (u . grad) phi_j at q
+    for e in range(nel):
+        for i in range(6):
+            k = edofs[e, i]
+            lu[i, 0] = u[2 * k]
+            lu[i, 1] = u[2 * k + 1]
+        for q in range(nq):
+            ux = 0.0
+            uy = 0.0
+            g00 = 0.0
+            g01 = 0.0
+            g10 = 0.0
+            g11 = 0.0
+            for i in range(6):
+                v = tab[e, q, i]
+                dx = tab[e, nq + q, i]
+                dy = tab[e, 2 * nq + q, i]
+                ux += v * lu[i, 0]
+                uy += v * lu[i, 1]
+                g00 += dx * lu[i, 0]
+                g01 += dy * lu[i, 0]
+                g10 += dx * lu[i, 1]
+                g11 += dy * lu[i, 1]
+            uq[q, 0] = ux
+            uq[q, 1] = uy
+            grad[q, 0, 0] = g00
+            grad[q, 0, 1] = g01
+            grad[q, 1, 0] = g10
+            grad[q, 1, 1] = g11
+            for j in range(6):
+                adv[q, j] = tab[e, nq + q, j] * ux + tab[e, 2 * nq + q, j] * uy
+        base = 144 * e
+        for i in range(6):
+            for j in range(6):
+                t1 = 0.0
+                for q in range(nq):
+                    t1 += wphi[e, i, q] * adv[q, j]
+                for c in range(2):
+                    for d in range(2):
+                        s = 0.0
+                        if newton:
+                            for q in range(nq):
+                                s += wphi[e, i, q] * tab[e, q, j] * grad[q, c, d]
+                        if c == d:
+                            s += t1
+                        out[slot[base + 24 * i + 12 * c + 2 * j + d]] += s
