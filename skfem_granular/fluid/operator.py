@@ -61,7 +61,8 @@ class NavierStokesOperator:
         if viscous == "auto":
             viscous = "symmetric" if dirichlet.closed else "laplace"
         self.viscous = viscous
-        self.K = fluid.viscosity * space.K(viscous)
+        K = space.K(viscous)
+        self.K = with_data(K, fluid.viscosity * K.data)  # the space's index arrays, shared
         self._body_force_spec = body_force
         self.f = self._body_force(body_force)
         nu = space.nu
