@@ -5,7 +5,8 @@ convection term is the only state-dependent block of the Navier-Stokes
 system, so :class:`ConvectionKernel` keeps the P2 basis values, gradients and
 quadrature weights per element and evaluates ``N(a) b`` vectors and the Newton
 Jacobian's action, and the Jacobian matrix on a fixed sparsity pattern, each in one
-compiled pass over the triangles (:mod:`~skfem_granular.fluid.convection_numba`). The results equal the forms
+compiled pass over the triangles (:mod:`~skfem_granular.fluid.convection_numba`).
+The results equal the forms
 :data:`~skfem_granular.fluid.forms.convection` and
 :data:`~skfem_granular.fluid.forms.convection_newton` (tested).
 """
@@ -85,8 +86,9 @@ class ConvectionKernel:
         #: value slot of local entry (e, i, c, j, d) in :attr:`pattern` (int32)
         self.slot, self._indices, self._indptr = (element_pattern(self.edofs) if pattern is None
                                                   else pattern)
-        # element-major tables for the compiled passes: _tab[e] stacks the values, x- and y-derivatives of the 6 basis functions at the
-        # quadrature points, (3 nq, 6); _wphi[e] = phi_i(q) dx(q), (6, nq)
+        # element-major tables for the compiled passes: _tab[e] stacks the values, x- and
+        # y-derivatives of the 6 basis functions at the quadrature points, (3 nq, 6);
+        # _wphi[e] = phi_i(q) dx(q), (6, nq)
         # (the values and gradients themselves are not kept: 20 MB at 95k DOFs)
         nq = dx.shape[1]
         self._nq = nq

@@ -91,8 +91,8 @@ def convection_jacobian(u, newton, edofs, tab, wphi, slot, out):  # pragma: no c
     Entry ``(i, c, j, d)`` of a triangle's matrix (row ``2 edof_i + c``, column
     ``2 edof_j + d``) is ``delta_cd (phi_i, u . grad phi_j)``, plus with ``newton``
     ``(phi_i phi_j, d_d u_c)``; it is added at ``out[slot[144 e + 24 i + 12 c + 2 j + d]]``
-    (the kernel's pattern), element after element as the numpy version's ``bincount``
-    adds them. No per-element tables beyond the kernel's own are needed.
+    (the kernel's pattern), element after element. No per-element tables beyond the
+    kernel's own are needed.
 
     Parameters
     ----------
@@ -110,7 +110,6 @@ def convection_jacobian(u, newton, edofs, tab, wphi, slot, out):  # pragma: no c
     nel = edofs.shape[0]
     nq = wphi.shape[2]
     lu = np.empty((6, 2))
-    uq = np.empty((nq, 2))
     grad = np.empty((nq, 2, 2))  # (q, c, d): d_d u_c
     adv = np.empty((nq, 6))  # (u . grad) phi_j at q
     for e in range(nel):
@@ -135,8 +134,6 @@ def convection_jacobian(u, newton, edofs, tab, wphi, slot, out):  # pragma: no c
                 g01 += dy * lu[i, 0]
                 g10 += dx * lu[i, 1]
                 g11 += dy * lu[i, 1]
-            uq[q, 0] = ux
-            uq[q, 1] = uy
             grad[q, 0, 0] = g00
             grad[q, 0, 1] = g01
             grad[q, 1, 0] = g10

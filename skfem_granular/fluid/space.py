@@ -2,8 +2,8 @@
 
 :class:`TaylorHood` owns the DOF numbering, the scikit-fem bases (built when
 asked for), the constant blocks (``M``, ``K`` in both viscous forms, ``B``), the
-convection kernel and the DOF maps of the named boundaries. It is built once per mesh and shared by the steady
-and unsteady solvers and by the force evaluation.
+convection kernel and the DOF maps of the named boundaries. It is built once per
+mesh and shared by the steady and unsteady solvers and by the force evaluation.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 from skfem import Basis, ElementTriP1, ElementTriP2, ElementVector, FacetBasis, MeshTri, asm
 from skfem.assembly import Dofs
+from skfem.mapping import MappingAffine
 from skfem.quadrature import get_quadrature
 
 from . import forms
@@ -210,7 +211,9 @@ class TaylorHood:
             g = self._moved_geometry
             return self.reference.convection.with_tables(g["tab"], g["wphi"])
         # the scalar basis only while the kernel takes its tables (unless already built)
-        sb = self.__dict__.get("sb") or Basis(self.mesh, ElementTriP2(), intorder=self.intorder)
+        sb = self.__dict__.get("sb")
+        if sb is None:
+            sb = Basis(self.mesh, ElementTriP2(), intorder=self.intorder)
         return ConvectionKernel(sb, pattern=self.velocity_pattern)
 
     @cached_property
@@ -286,7 +289,7 @@ class TaylorHood:
     def _reference_doflocs(self, elem, dofs: Dofs) -> np.ndarray:
         """DOF locations ``(2, N)`` of ``elem`` on the mesh as built, as scikit-fem's
         bases compute them (without building a basis)."""
-        mapped = self.mesh._mapping().F(elem.doflocs.T)  # (2, nel, nlocal)
+        mapped = MappingAffine(self.mesh).F(elem.doflocs.T)  # (2, nel, nlocal)
         out = np.zeros((mapped.shape[0], dofs.N))
         for i in range(mapped.shape[0]):
             for j in range(dofs.element_dofs.shape[0]):
@@ -302,8 +305,7 @@ class TaylorHood:
     def component(self) -> np.ndarray:
         """Component (0 = x, 1 = y) of each velocity DOF."""
         # scikit-fem numbers a vector element's DOFs component-interleaved: 2 k + c
-        comp = (np.arange(self.nu) % 2).astype(np.int8)
-        return comp
+        return (np.arange(self.nu) % 2).astype(np.int8)
 
     def facet_basis(self, name: str, element: str = "velocity") -> FacetBasis:
         """A facet basis on boundary ``name`` (velocity or pressure element)."""
