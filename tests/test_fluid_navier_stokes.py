@@ -138,3 +138,18 @@ def test_convection_kernel_equals_scikit_fem_forms(moved):
     assert np.abs(kern.jacobian_action(u, du) - J @ du).max() <= 1e-13 * scale
     assert abs(kern.jacobian(u) - J).max() <= 1e-13 * abs(J).max()
     assert abs(kern.jacobian(u, newton=False) - N(u)).max() <= 1e-13 * abs(N(u)).max()
+
+
+def test_convection_kernel_buffers_and_maps_are_checked():
+    """Values written into a caller's buffer equal a new array's bit for bit; a buffer or
+    a set of affine maps of the wrong shape is refused by name."""
+    mesh = MeshTri.init_tensor(np.linspace(0, 1, 5), np.linspace(0, 1, 4))
+    kern = sg.TaylorHood(mesh).convection
+    u = np.random.default_rng(1).standard_normal(kern.nu)
+    out = np.full(kern.pattern[0].size, 7.0)  # overwritten, not accumulated into
+    assert kern.jacobian_data(u, out=out) is out
+    np.testing.assert_array_equal(out, kern.jacobian_data(u))
+    with pytest.raises(ValueError, match="out: "):
+        kern.jacobian_data(u, out=np.zeros(3))
+    with pytest.raises(ValueError, match=r"maps: shape \(2, 5\)"):
+        kern.with_maps(np.zeros((2, 5)))

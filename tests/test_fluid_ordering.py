@@ -164,3 +164,28 @@ def test_newton_solve_checks_its_residual(system, delta, refined):
         assert len(calls) >= 3 and res <= 1e-12
     else:
         assert len(calls) == 1 and res <= 1e-10
+
+
+def test_factor_plan_cache_forgets_dropped_patterns(system):
+    """The plan cache holds its patterns weakly: a matrix dropped after its factorisation
+    takes its entry along (it used to keep its index arrays alive)."""
+    import gc
+
+    from skfem_granular.fluid import factor_plan
+
+    _, op, _, J, b = system
+    blocks = op.solver_blocks(A0)
+    factor_plan._CACHE.clear()
+    factor_plan._SEEN.clear()
+    own = J.copy()  # index arrays of its own
+    solver = SuperLUSolver().factorize(own, op.nu_free, **blocks)
+    assert len(factor_plan._SEEN) == 1
+    y = solver.solve(b)
+    assert np.linalg.norm(own @ y - b) <= 1e-12 * np.linalg.norm(b)
+    del own, solver
+    gc.collect()
+    assert len(factor_plan._SEEN) == 0
+    # a pattern that stays alive keeps its plan
+    for _ in range(2):
+        SuperLUSolver().factorize(J, op.nu_free, **blocks)
+    assert len(factor_plan._CACHE) == 1

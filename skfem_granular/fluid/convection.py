@@ -2,8 +2,8 @@
 
 scikit-fem's generic ``asm`` re-evaluates basis functions on every call. The
 convection term is the only state-dependent block of the Navier-Stokes
-system, so :class:`ConvectionKernel` keeps the P2 basis values, gradients and
-quadrature weights per element and evaluates ``N(a) b`` vectors and the Newton
+system, so :class:`ConvectionKernel` keeps the triangles' affine maps and the
+reference element's basis values, gradients and quadrature weights and evaluates ``N(a) b`` vectors and the Newton
 Jacobian's action, and the Jacobian matrix on a fixed sparsity pattern, each in one
 compiled pass over the triangles (:mod:`~skfem_granular.fluid.convection_numba`).
 The results equal the forms
@@ -17,7 +17,6 @@ import copy
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import Basis
 
 from .geometry import scatter_pattern
 
@@ -70,42 +69,46 @@ class ConvectionKernel:
 
     Parameters
     ----------
-    scalar_basis : skfem.Basis
-        Scalar P2 basis on the mesh, with the quadrature of the vector basis.
-        Vector DOF ``2 k + c`` is component ``c`` of scalar DOF ``k``.
+    edofs : (6, nel) int ndarray
+        Scalar P2 DOFs of every triangle; vector DOF ``2 k + c`` is component ``c``
+        of scalar DOF ``k``.
+    maps : (nel, 5) ndarray
+        The triangles' affine maps, ``Ainv[0, 0], Ainv[1, 0], Ainv[0, 1], Ainv[1, 1],
+        |det A|`` (:meth:`~skfem_granular.fluid.geometry.ReferenceBlocks.moved` with
+        ``"convection"``).
+    reference : tuple of ndarray
+        ``(phi, dref, weights)``: the P2 basis values ``(6, nq)`` and reference
+        gradients ``(6, 2, nq)`` at the quadrature points of the reference triangle,
+        and the quadrature weights ``(nq,)``.
+    pattern : tuple of ndarray, optional
+        ``(slot, indices, indptr)`` of :func:`element_pattern` of ``edofs``, if already
+        built.
     """
 
-    def __init__(self, scalar_basis: Basis, pattern: tuple | None = None):
-        sb = scalar_basis
-        self.edofs = sb.element_dofs  # (6, nel)
-        nloc = self.edofs.shape[0]
-        phi = np.array([np.asarray(sb.basis[i][0]) for i in range(nloc)])  # (6, nel, nq)
-        dphi = np.array([sb.basis[i][0].grad for i in range(nloc)])  # (6, 2, nel, nq)
-        dx = sb.dx  # (nel, nq)
-        self.nu = 2 * sb.N
+    def __init__(self, edofs: np.ndarray, maps: np.ndarray, reference: tuple,
+                 pattern: tuple | None = None):
+        self.edofs = edofs  # (6, nel)
+        phi, dref, weights = (np.ascontiguousarray(a, dtype=float) for a in reference)
+        nel = edofs.shape[1]
+        if maps.shape != (nel, 5) or phi.shape != (6, weights.size) or dref.shape != (
+                6, 2, weights.size):
+            raise ValueError(f"maps, reference: shapes {maps.shape}, {phi.shape}, "
+                             f"{dref.shape}, {weights.shape} for {nel} triangles")
+        self._maps = np.ascontiguousarray(maps, dtype=float)
+        self._reference = (phi, dref, weights)
+        self.nu = 2 * (int(edofs.max()) + 1)
         #: value slot of local entry (e, i, c, j, d) in :attr:`pattern` (int32)
-        self.slot, self._indices, self._indptr = (element_pattern(self.edofs) if pattern is None
+        self.slot, self._indices, self._indptr = (element_pattern(edofs) if pattern is None
                                                   else pattern)
-        # element-major tables for the compiled passes: _tab[e] stacks the values, x- and
-        # y-derivatives of the 6 basis functions at the quadrature points, (3 nq, 6);
-        # _wphi[e] = phi_i(q) dx(q), (6, nq)
-        # (the values and gradients themselves are not kept: 20 MB at 95k DOFs)
-        nq = dx.shape[1]
-        self._nq = nq
-        self._tab = np.ascontiguousarray(np.concatenate(
-            [phi.transpose(1, 2, 0), dphi[:, 0].transpose(1, 2, 0),
-             dphi[:, 1].transpose(1, 2, 0)], axis=1))  # (nel, 3 nq, 6)
-        self._wphi = np.ascontiguousarray((phi * dx).transpose(1, 0, 2))  # (nel, 6, nq)
-        self._edofs_e = np.ascontiguousarray(self.edofs.T, dtype=np.int64)  # (nel, 6)
+        self._edofs_e = np.ascontiguousarray(edofs.T, dtype=np.int64)  # (nel, 6)
 
-    def with_tables(self, tab: np.ndarray, wphi: np.ndarray) -> ConvectionKernel:
-        """The same kernel on a moved mesh, from its element tables: ``tab``
-        ``(nel, 3 nq, 6)`` (basis values, x- and y-derivatives at the quadrature points)
-        and ``wphi`` ``(nel, 6, nq)`` (``phi_i dx``) of the moved triangles; values, DOFs
-        and the sparsity pattern are those of this kernel
-        (:meth:`~skfem_granular.fluid.geometry.ReferenceBlocks.moved` builds the tables)."""
+    def with_maps(self, maps: np.ndarray) -> ConvectionKernel:
+        """The same kernel on a moved mesh, from the affine maps ``(nel, 5)`` of its
+        triangles; DOFs, reference element and the sparsity pattern are this kernel's."""
+        if maps.shape != self._maps.shape:
+            raise ValueError(f"maps: shape {maps.shape}, expected {self._maps.shape}")
         new = copy.copy(self)
-        new._tab, new._wphi = tab, wphi
+        new._maps = np.ascontiguousarray(maps, dtype=float)
         return new
 
     def apply(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -120,8 +123,8 @@ class ConvectionKernel:
         out = np.zeros(self.nu)
         convection_vector(np.ascontiguousarray(a, dtype=float), float(ca),
                           np.ascontiguousarray(w, dtype=float), float(cw),
-                          np.ascontiguousarray(b, dtype=float), self._edofs_e, self._tab,
-                          self._wphi, out)
+                          np.ascontiguousarray(b, dtype=float), self._edofs_e, self._maps,
+                          *self._reference, out)
         return out
 
     def apply_relative(self, u: np.ndarray, w: np.ndarray, convection: bool = True
@@ -148,7 +151,8 @@ class ConvectionKernel:
         """``(indices, indptr)`` of the CSR pattern shared by every :meth:`jacobian`."""
         return self._indices, self._indptr
 
-    def jacobian_data(self, u: np.ndarray, newton: bool = True) -> np.ndarray:
+    def jacobian_data(self, u: np.ndarray, newton: bool = True,
+                      out: np.ndarray | None = None) -> np.ndarray:
         """Values of :meth:`jacobian` on its fixed pattern (:attr:`pattern`).
 
         Parameters
@@ -158,10 +162,19 @@ class ConvectionKernel:
         newton : bool
             ``True``: full Newton Jacobian ``N(u) . + N(.) u``; ``False``:
             Picard (Oseen) matrix ``N(u)``.
+        out : ndarray, optional
+            Where to write the values (float, C-contiguous, one per entry of the
+            pattern; overwritten); a new array by default.
         """
         from .convection_numba import convection_jacobian
 
-        out = np.zeros(self._indices.size)
+        if out is None:
+            out = np.zeros(self._indices.size)
+        else:
+            if out.shape != self._indices.shape or out.dtype != float:
+                raise ValueError(f"out: {out.shape} {out.dtype} for a pattern of "
+                                 f"{self._indices.size} float entries")
+            out[:] = 0.0
         convection_jacobian(np.ascontiguousarray(u, dtype=float), bool(newton), self._edofs_e,
-                            self._tab, self._wphi, self.slot, out)
+                            self._maps, *self._reference, self.slot, out)
         return out

@@ -4,8 +4,8 @@ On a mesh whose vertices move (ALE) the connectivity, the DOF numbering and
 the sparsity patterns stay; only the affine maps of the triangles change.
 :class:`ReferenceBlocks` keeps the reference-element integrals of the P2/P1
 basis functions and the scatter maps into the fixed patterns, and builds
-``M``, ``K`` (both viscous forms), ``B`` and the convection kernel's tables for
-new vertex positions in one compiled pass over the triangles
+``M``, ``K`` (both viscous forms), ``B`` and the affine maps the convection
+kernel takes for new vertex positions in one compiled pass over the triangles
 (:mod:`~skfem_granular.fluid.geometry_numba`): on a triangle with map
 ``x = A xhat + b``,
 
@@ -37,8 +37,8 @@ def with_data(template: sp.csr_matrix, data: np.ndarray) -> sp.csr_matrix:
     moved mesh are rebuilt every step on patterns that never change, and scipy's
     constructor checks the index arrays each time (about 20 us; this takes 4 us).
     """
-    if data.shape != template.data.shape:
-        raise ValueError(f"data: {data.shape} values for a pattern of {template.data.shape}")
+    if data.shape != template.indices.shape:
+        raise ValueError(f"data: {data.shape} values for a pattern of {template.indices.shape}")
     out = copy.copy(template)
     out.data = data
     return out
@@ -77,6 +77,17 @@ def affine_maps(p: np.ndarray, t: np.ndarray):
     return A, Ainv, det
 
 
+def _template(indices: np.ndarray, indptr: np.ndarray, shape: tuple) -> sp.csr_matrix:
+    """A CSR matrix of the pattern for :func:`with_data`, with no values of its own.
+
+    Its ``data`` is a placeholder of length 0 (zeros on the velocity pattern would be
+    15 MB at 95k DOFs); only :func:`with_data`'s shallow copies carry values.
+    """
+    T = sp.csr_matrix(shape, dtype=float)  # empty: values of length 0
+    T.indices, T.indptr = indices, indptr
+    return T
+
+
 class _Pattern:
     """Fixed CSR pattern of element matrices scattered by ``(rows, cols)`` ``(nel, a, b)``."""
 
@@ -86,8 +97,7 @@ class _Pattern:
         self.slot, self.indices, self.indptr = (scatter_pattern(rows, cols, shape)
                                                 if known is None else known)
         self.shape = shape
-        self._template = sp.csr_matrix((np.zeros(self.indices.size), self.indices,
-                                        self.indptr), shape=shape)
+        self._template = _template(self.indices, self.indptr, shape)
 
     def csr(self, data: np.ndarray) -> sp.csr_matrix:
         """The matrix with values ``data`` on this pattern (index arrays shared)."""
@@ -97,8 +107,7 @@ class _Pattern:
         """The transpose of :meth:`csr` of ``data``, in CSR format (index arrays shared)."""
         if not hasattr(self, "_transposed_template"):
             indices, indptr, _ = self.transpose_map()
-            self._transposed_template = sp.csr_matrix(
-                (np.zeros(indices.size), indices, indptr), shape=self.shape[::-1])
+            self._transposed_template = _template(indices, indptr, self.shape[::-1])
         return with_data(self._transposed_template, data[self.transpose_map()[2]])
 
     def transpose_map(self):
@@ -172,14 +181,13 @@ class ReferenceBlocks:
         parts : sequence of str
             Of ``M``, ``K_symmetric``, ``K_laplace``, ``B`` (CSR on the reference
             patterns; the velocity blocks share one pattern) and ``convection``: the
-            convection kernel's tables ``tab`` ``(nel, 3 nq, 6)`` (basis values, x- and
-            y-derivatives at the quadrature points) and ``wphi`` ``(nel, 6, nq)``
-            (``phi_i dx``).
+            triangles' affine maps ``maps`` ``(nel, 5)`` that
+            :class:`~skfem_granular.fluid.convection.ConvectionKernel` takes.
 
         Returns
         -------
         dict
-            The blocks by name, and ``tab``, ``wphi`` for ``convection``.
+            The blocks by name, and ``maps`` for ``convection``.
 
         Raises
         ------
@@ -196,14 +204,10 @@ class ReferenceBlocks:
         M, Ks, Kl = (np.zeros(n if name in parts else 0)
                      for name in ("M", "K_symmetric", "K_laplace"))
         B = np.zeros(pu.indices.size if "B" in parts else 0)
-        nel = self.t.shape[1] if "convection" in parts else 0
-        nq = self.weights.size
-        tab = np.empty((nel, 3 * nq, 6))
-        wphi = np.empty((nel, 6, nq))
+        maps = np.empty((self.t.shape[1] if "convection" in parts else 0, 5))
         moved_element_data(p, self.t, self.orientation, self.Mhat, self.S4, self.E,
-                           self.dphi, self.phi, self.weights, uu.slot, pu.slot,
-                           M, Ks, Kl, B, tab, wphi)
-        out = {"tab": tab, "wphi": wphi} if nel else {}
+                           uu.slot, pu.slot, M, Ks, Kl, B, maps)
+        out = {"maps": maps} if maps.shape[0] else {}
         for name, data in (("M", M), ("K_symmetric", Ks), ("K_laplace", Kl)):
             if name in parts:
                 out[name] = uu.csr(data)

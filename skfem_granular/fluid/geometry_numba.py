@@ -4,8 +4,7 @@
 :meth:`~skfem_granular.fluid.geometry.ReferenceBlocks.moved`: for every triangle it
 forms the affine map from the vertex positions and adds the element matrices of
 ``M``, both viscous forms and ``B`` into the values of their fixed CSR patterns, and
-writes the convection kernel's per-element tables (basis gradients at the
-quadrature points, weighted basis values). The formulas are those of
+writes the affine maps the convection kernel takes (five numbers per triangle). The formulas are those of
 :mod:`~skfem_granular.fluid.geometry`; contributions are added in the element
 order of the scatter maps, as ``numpy.bincount`` would.
 
@@ -21,8 +20,8 @@ from .._jit import lazy_njit
 
 
 @lazy_njit  # numba.njit(cache=True) at the first call
-def moved_element_data(p, t, orientation, Mhat, S4, E, dref, phi, weights, uu_slot, pu_slot,
-                       M, Ks, Kl, B, tab, wphi):  # pragma: no cover (compiled)
+def moved_element_data(p, t, orientation, Mhat, S4, E, uu_slot, pu_slot,
+                       M, Ks, Kl, B, maps):  # pragma: no cover (compiled)
     """Accumulate the blocks of the triangles ``t`` at vertex positions ``p``.
 
     Parameters
@@ -37,12 +36,6 @@ def moved_element_data(p, t, orientation, Mhat, S4, E, dref, phi, weights, uu_sl
         Reference integrals ``(6, 6)``, ``(4, 36)`` (``S[k, l, i, j]`` as ``[2 k + l,
         6 i + j]``), ``(2, 3, 6)``
         (:class:`~skfem_granular.fluid.geometry.ReferenceBlocks`).
-    dref : (6, 2, nq) ndarray
-        Reference gradients of the P2 basis at the quadrature points.
-    phi : (6, nq) ndarray
-        P2 basis values at the quadrature points.
-    weights : (nq,) ndarray
-        Reference quadrature weights.
     uu_slot : (nel * 144,) ndarray
         Value slot of local velocity entry ``(e, i, c, j, d)``.
     pu_slot : (nel * 36,) ndarray
@@ -50,16 +43,14 @@ def moved_element_data(p, t, orientation, Mhat, S4, E, dref, phi, weights, uu_sl
     M, Ks, Kl, B : ndarray
         Zeroed value arrays of the blocks (output): ``M``, the symmetric-gradient and
         the Laplace forms of ``K``, ``B``; one of size 0 is skipped.
-    tab : (nel, 3 nq, 6) ndarray
-        Convection table: values, x- and y-derivatives of the basis (output; skipped,
-        with ``wphi``, when of length 0).
-    wphi : (nel, 6, nq) ndarray
-        ``phi_i(q) dx(q)`` (output).
+    maps : (nel, 5) ndarray
+        ``Ainv[0, 0], Ainv[1, 0], Ainv[0, 1], Ainv[1, 1], |det A|`` of every triangle
+        (output, for :mod:`~skfem_granular.fluid.convection_numba`; skipped when of
+        length 0).
     """
     nel = t.shape[1]
-    nq = weights.shape[0]
     mass, symmetric, laplace = M.size > 0, Ks.size > 0, Kl.size > 0
-    divergence, tables = B.size > 0, tab.shape[0] > 0
+    divergence, affine = B.size > 0, maps.shape[0] > 0
     At = np.empty((2, 2))
     G3 = np.empty((3, 36))
     for e in range(nel):
@@ -116,13 +107,10 @@ def moved_element_data(p, t, orientation, Mhat, S4, E, dref, phi, weights, uu_sl
                     for d in range(2):
                         s = At[d, 0] * E[0, m, j] + At[d, 1] * E[1, m, j]
                         B[pu_slot[base + (6 * m + j) * 2 + d]] += -(det * s)
-        if not tables:
-            continue
-        for q in range(nq):
-            dxq = det * weights[q]
-            for i in range(6):
-                tab[e, q, i] = phi[i, q]
-                tab[e, nq + q, i] = At[0, 0] * dref[i, 0, q] + At[0, 1] * dref[i, 1, q]
-                tab[e, 2 * nq + q, i] = At[1, 0] * dref[i, 0, q] + At[1, 1] * dref[i, 1, q]
-                wphi[e, i, q] = phi[i, q] * dxq
+        if affine:
+            maps[e, 0] = At[0, 0]
+            maps[e, 1] = At[0, 1]
+            maps[e, 2] = At[1, 0]
+            maps[e, 3] = At[1, 1]
+            maps[e, 4] = det
 

@@ -227,15 +227,21 @@ class NavierStokesOperator:
         if not self.convection:
             return self.reduced(self.jacobian(x, c_mass, newton))
         kern = self.space.convection
-        data = kern.jacobian_data(x[: self.space.nu], newton=newton)
-        data *= self.fluid.density
         A = self.velocity_block(c_mass)
         pos = self._velocity_positions(A)
         if pos is None:  # A not within the convection pattern: the general path
             return self.reduced(self.jacobian(x, c_mass, newton))
-        data[pos] += A.data
         indices, indptr, gather = self._reduced_pattern
-        values = np.concatenate([data, self._Bt.data, self._B_lower.data])[gather]
+        # the values of [velocity block | B^T | B] in one buffer, the velocity block
+        # written in place (no separate copy to concatenate: 15 MB at 95k DOFs)
+        nuu, nbt = kern.pattern[0].size, self._Bt.nnz
+        values = np.empty(nuu + nbt + self._B_lower.nnz)
+        data = kern.jacobian_data(x[: self.space.nu], newton=newton, out=values[:nuu])
+        data *= self.fluid.density
+        data[pos] += A.data
+        values[nuu:nuu + nbt] = self._Bt.data
+        values[nuu + nbt:] = self._B_lower.data
+        values = values[gather]
         n = self.free.size
         return sp.csr_matrix((values, indices, indptr), shape=(n, n))
 

@@ -48,11 +48,18 @@ class SaddlePointSolver:
         self.stats = SolverStats(self.name)
         self._scale = None
 
-    def _scaled(self, A: sp.spmatrix, nu: int) -> sp.csr_matrix:
+    @staticmethod
+    def _canonical(A: sp.spmatrix) -> sp.csr_matrix:
+        """``A`` in CSR format with sorted, unique entries (a copy only when needed)."""
         A = sp.csr_matrix(A)
         if not A.has_canonical_format:
             A = A.copy()
             A.sum_duplicates()
+        return A
+
+    def _scaled(self, A: sp.spmatrix, nu: int) -> sp.csr_matrix:
+        """``D A D`` with the pressure scale ``D`` (set as :attr:`_scale`)."""
+        A = self._canonical(A)
         diag = np.abs(A.diagonal()[:nu])
         rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
         upper_right = (rows < nu) & (A.indices >= nu)  # the B^T block

@@ -208,13 +208,11 @@ class TaylorHood:
     def convection(self) -> ConvectionKernel:
         """Fast convection evaluation on this mesh."""
         if self.reference is not self:
-            g = self._moved_geometry
-            return self.reference.convection.with_tables(g["tab"], g["wphi"])
-        # the scalar basis only while the kernel takes its tables (unless already built)
-        sb = self.__dict__.get("sb")
-        if sb is None:
-            sb = Basis(self.mesh, ElementTriP2(), intorder=self.intorder)
-        return ConvectionKernel(sb, pattern=self.velocity_pattern)
+            return self.reference.convection.with_maps(self._moved_geometry["maps"])
+        rb = self.reference_blocks
+        maps = rb.moved(self.mesh.p, check=False, parts=("convection",))["maps"]
+        return ConvectionKernel(self.scalar_dofs.element_dofs, maps,
+                                (rb.phi, rb.dphi, rb.weights), pattern=self.velocity_pattern)
 
     @cached_property
     def velocity_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -56,61 +56,78 @@ class SuperLUSolver(SaddlePointSolver):
 
         With an ``ordering`` block and a pattern seen before, scaling,
         regularisation and permutation are gathers through a cached
-        :class:`~skfem_granular.fluid.factor_plan.FactorPlan`.
+        :class:`~skfem_granular.fluid.factor_plan.FactorPlan`. ``A`` itself is
+        kept (not copied) for the residuals of iterative refinement: do not
+        modify it while solving with these factors.
         """
         # the previous factors go first: kept until the new ones exist, both sets would be
-        # alive at once (95k-DOF steady Newton solve: peak 1206 -> MB)
+        # alive at once (95k-DOF steady Newton solve: peak 1206 -> 766 MB)
         self._lu = self._A = None
+        t0 = time.perf_counter()
+        self.nu = nu
+        A = self._canonical(A)
         perm = blocks.get("ordering")
-        if (perm is not None and self.delta > 0 and sp.issparse(A) and A.format == "csr"
-                and A.shape[0] > nu and np.shape(perm) == (A.shape[0],)):
-            t0 = time.perf_counter()
-            plan = plan_for(A, nu, perm, blocks.get("Mp"))
-            if plan is not None:
-                self.nu = nu
-                s, scaled, vmax = plan.scale(A.data)
-                self._scale = np.ones(A.shape[0])
-                self._scale[nu:] = s
-                self._A = sp.csr_matrix((scaled, A.indices, A.indptr), shape=A.shape)
-                self._static, self._refined_ok = True, False
-                self._lu = _PermutedLU(plan.permuted_transpose(scaled, self.delta * vmax), perm)
-                self.stats.factorizations += 1
-                self.stats.time_factor += time.perf_counter() - t0
-                return self
-        return super().factorize(A, nu, **blocks)
-
-    def _factorize(self, A, ordering=None, **blocks):
-        self._A = A.tocsr()
-        if ordering is not None:
-            ordering = np.asarray(ordering)
-            if ordering.shape != (A.shape[0],):
-                raise ValueError(f"ordering: length {ordering.size}, expected the matrix size "
+        if perm is not None:
+            perm = np.asarray(perm)
+            if perm.shape != (A.shape[0],):
+                raise ValueError(f"ordering: length {perm.size}, expected the matrix size "
                                  f"{A.shape[0]}")
-        self._static = self.delta > 0 and A.shape[0] > self.nu
+        self._static = self.delta > 0 and A.shape[0] > nu
         self._refined_ok = False  # set by the first refined solve that converges
-        if self._static:
-            n, nu = A.shape[0], self.nu
-            # typical velocity pivot (not the max: rigid-body rows of a coupled system are huge)
-            vmax = float(np.median(np.abs(self._A.diagonal()[:nu])))
-            Mp = blocks.get("Mp")
-            if Mp is None:
-                reg = sp.diags(np.r_[np.zeros(nu), np.full(n - nu, self.delta * vmax)])
-            else:
-                Mp = sp.csr_matrix(Mp) * self._scale[-1] ** 2
-                reg = sp.block_diag([sp.csr_matrix((nu, nu)),
-                                     Mp * (self.delta * vmax / abs(Mp).max())])
-            if ordering is None:
-                self._lu = spla.splu((A - reg).tocsc(), permc_spec="MMD_AT_PLUS_A",
-                                     diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
-            else:
-                self._lu = _PermutedLU.of(A - reg, ordering)
+        plan = (plan_for(A, nu, perm, blocks.get("Mp"))
+                if perm is not None and self._static else None)
+        if plan is not None:
+            s, scaled, vmax = plan.scale(A.data)
+            self._scale = np.ones(A.shape[0])
+            self._scale[nu:] = s
+            CT = plan.permuted_transpose(scaled, self.delta * vmax)
+            del scaled
         else:
-            self._pivoted(A)
+            CT = self._regularised(A, perm, blocks.get("Mp"))
+        # only ``A`` and SuperLU's input are alive while it factorises: the residuals of
+        # the scaled system are ``D (A (D y))``, no scaled copy is kept (20 MB at 95k DOFs)
+        self._A = A
+        if CT is None:
+            self._pivoted()
+        elif perm is None:
+            self._lu = spla.splu(CT, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                 options=dict(SymmetricMode=True))
+        else:
+            self._lu = _PermutedLU(CT, perm)
+        del CT
+        self.stats.factorizations += 1
+        self.stats.time_factor += time.perf_counter() - t0
+        return self
 
-    def _pivoted(self, A):
+    def _regularised(self, A: sp.csr_matrix, perm, Mp) -> sp.csc_matrix | None:
+        """SuperLU's input for ``D A D - reg``: in the order ``perm`` (transposed, see
+        :class:`_PermutedLU`) or unpermuted; None without static pivoting."""
+        if not self._static:
+            self._scaled(A, self.nu)  # the pressure scale of the pivoted factorisation
+            return None
+        n, nu = A.shape[0], self.nu
+        S = self._scaled(A, nu)
+        # typical velocity pivot (not the max: rigid-body rows of a coupled system are huge)
+        vmax = float(np.median(np.abs(S.diagonal()[:nu])))
+        if Mp is None:
+            reg = sp.diags(np.r_[np.zeros(nu), np.full(n - nu, self.delta * vmax)])
+        else:
+            Mp = sp.csr_matrix(Mp) * self._scale[-1] ** 2
+            reg = sp.block_diag([sp.csr_matrix((nu, nu)),
+                                 Mp * (self.delta * vmax / abs(Mp).max())])
+        S = S - reg  # the scaled copy goes as soon as the difference exists
+        if perm is None:
+            return S.tocsc()
+        return _PermutedLU.transposed_input(S, perm)
+
+    def _scaled_product(self, y: np.ndarray) -> np.ndarray:
+        """``D A D y`` for the kept ``A`` and pressure scale ``D``."""
+        return self._scale * (self._A @ (self._scale * y))
+
+    def _pivoted(self):
         self._static = False
-        self._lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
-                             options=dict(SymmetricMode=True))
+        self._lu = spla.splu(self._scaled(self._A, self.nu).tocsc(), permc_spec="MMD_AT_PLUS_A",
+                             diag_pivot_thresh=0.01, options=dict(SymmetricMode=True))
 
     def solve_correction(self, b):
         """One triangular solve with the regularised factors, no refinement.
@@ -128,7 +145,7 @@ class SuperLUSolver(SaddlePointSolver):
         y = self._lu.solve(bs)
         if not self._refined_ok:
             bnorm = np.linalg.norm(bs)
-            if np.linalg.norm(bs - self._A @ y) > self.INEXACT_RTOL * bnorm:
+            if np.linalg.norm(bs - self._scaled_product(y)) > self.INEXACT_RTOL * bnorm:
                 return self.solve(b)
             self._refined_ok = True
         x = self._scale * y
@@ -145,7 +162,7 @@ class SuperLUSolver(SaddlePointSolver):
             return x
         prev = np.inf
         for _ in range(self.max_refine):
-            r = b - self._A @ x
+            r = b - self._scaled_product(x)
             rn = np.linalg.norm(r) / bnorm
             if rn <= self.refine_rtol:
                 self._refined_ok = True
@@ -154,9 +171,9 @@ class SuperLUSolver(SaddlePointSolver):
                 break
             prev = rn
             x = x + self._lu.solve(r)
-        if np.linalg.norm(b - self._A @ x) / bnorm <= self.refine_rtol * 10:
+        if np.linalg.norm(b - self._scaled_product(x)) / bnorm <= self.refine_rtol * 10:
             return x
-        self._pivoted(self._A)
+        self._pivoted()
         return self._lu.solve(b)
 
 
@@ -175,15 +192,15 @@ class _PermutedLU:
         self.lu = spla.splu(CT, permc_spec="NATURAL", diag_pivot_thresh=0.0,
                             options=dict(SymmetricMode=True))
 
-    @classmethod
-    def of(cls, A: sp.csr_matrix, perm: np.ndarray) -> _PermutedLU:
-        """Factors of any ``A`` (CSR) in the order ``perm``."""
-        rows = sp.csr_matrix(A)[perm]  # row gather: cheap for CSR
+    @staticmethod
+    def transposed_input(A: sp.csr_matrix, perm: np.ndarray) -> sp.csc_matrix:
+        """SuperLU's input for ``A`` (CSR) in the order ``perm``: ``(P A P^T)^T`` in CSC."""
+        rows = A[perm]  # row gather: cheap for CSR
         inv = np.empty_like(perm)
         inv[perm] = np.arange(perm.size)
         CT = sp.csc_matrix((rows.data, inv[rows.indices], rows.indptr), shape=A.shape[::-1])
         CT.sort_indices()
-        return cls(CT, perm)
+        return CT
 
     @property
     def L(self) -> sp.csc_matrix:
