@@ -123,9 +123,10 @@ class TaylorHood:
 
     @cached_property
     def _moved_geometry(self) -> dict:
-        """A moved space's ``M``, ``B``, convection tables and ``K`` in the viscous forms
-        asked of the reference space so far (:meth:`K`), built together on first use:
-        every step on a moving mesh needs them."""
+        """A moved space's ``M``, ``B``, the triangles' affine maps (for the convection
+        kernel) and ``K`` in the viscous forms asked of the reference space so far
+        (:meth:`K`), built together on first use: every step on a moving mesh needs
+        them."""
         forms_in_use = tuple(f"K_{v}" for v in sorted(self.reference._viscous_forms))
         return self.reference_blocks.moved(self.mesh.p, check=False,
                                            parts=("M", "B", "convection") + forms_in_use)
