@@ -6,6 +6,7 @@ from skfem import Functional, MeshTri, asm
 
 import skfem_granular as sg
 from skfem_granular.fluid import ConvergenceError
+from skfem_granular.fluid.convection import ConvectionKernel
 
 RE = 40.0
 LAM = RE / 2 - np.sqrt(RE**2 / 4 + 4 * np.pi**2)
@@ -153,3 +154,15 @@ def test_convection_kernel_buffers_and_maps_are_checked():
         kern.jacobian_data(u, out=np.zeros(3))
     with pytest.raises(ValueError, match=r"maps: shape \(2, 5\)"):
         kern.with_maps(np.zeros((2, 5)))
+    with pytest.raises(ValueError, match=r"out: .*C-contiguous"):
+        kern.jacobian_data(u, out=np.zeros(2 * out.size)[::2])
+    with pytest.raises(ValueError, match=rf"u: shape \(3,\), expected \({kern.nu},\)"):
+        kern.jacobian_data(u[:3])
+    with pytest.raises(ValueError, match=rf"b: shape \(4,\), expected \({kern.nu},\)"):
+        kern.apply(u, u[:4])
+    with pytest.raises(ValueError, match=r"maps: shape \(2, 5\), expected \(24, 5\)"):
+        ConvectionKernel(kern.edofs, np.zeros((2, 5)),
+                         (np.zeros((6, 3)), np.zeros((6, 2, 3)), np.ones(3)))
+    with pytest.raises(ValueError, match=r"reference\[1\] \(dref\): shape \(6, 3\)"):
+        ConvectionKernel(kern.edofs, np.zeros((24, 5)),
+                         (np.zeros((6, 3)), np.zeros((6, 3)), np.ones(3)))

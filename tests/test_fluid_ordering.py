@@ -114,6 +114,30 @@ def test_bad_ordering_input_is_refused(system):
         space.ordering(op.free, "amd")
     with pytest.raises(ValueError, match=r"ordering: length 3, expected the matrix size"):
         SuperLUSolver().factorize(J, op.nu_free, ordering=np.arange(3))
+    n = J.shape[0]
+    for bad in (np.zeros(n, dtype=np.int64), np.arange(n) + 1, np.arange(n, dtype=float)):
+        with pytest.raises(ValueError, match=rf"ordering: must be a permutation of 0 .. {n - 1}"):
+            SuperLUSolver().factorize(J, op.nu_free, ordering=bad)
+
+
+def test_pivoted_fallback_keeps_the_scale_of_the_planned_factorisation(system):
+    """When refinement stalls (forced here: one refinement step allowed, a large
+    regularisation), the solver refactorises with threshold pivoting under the scale it
+    already applied to the right-hand side: the solution is exact to round-off."""
+    from skfem_granular.fluid import factor_plan
+
+    _, op, _, J, b = system
+    blocks = op.solver_blocks(A0)
+    factor_plan._CACHE.clear()
+    factor_plan._SEEN.clear()
+    for _ in range(2):  # the second factorisation goes through the cached plan
+        s = SuperLUSolver(delta=0.1, max_refine=1).factorize(J, op.nu_free, **blocks)
+    assert len(factor_plan._CACHE) == 1
+    scale = s._scale.copy()
+    x = s.solve(b)
+    assert not s._static  # fell back to the pivoted factorisation
+    assert np.array_equal(s._scale, scale)
+    assert np.linalg.norm(J @ x - b) <= 1e-12 * np.linalg.norm(b)
 
 
 @pytest.mark.parametrize("with_mp", [True, False])
@@ -182,10 +206,15 @@ def test_factor_plan_cache_forgets_dropped_patterns(system):
     assert len(factor_plan._SEEN) == 1
     y = solver.solve(b)
     assert np.linalg.norm(own @ y - b) <= 1e-12 * np.linalg.norm(b)
-    del own, solver
+    second = SuperLUSolver().factorize(own, op.nu_free, **blocks)  # builds its plan
+    assert len(factor_plan._CACHE) == 1
+    del own, solver, second
     gc.collect()
-    assert len(factor_plan._SEEN) == 0
-    # a pattern that stays alive keeps its plan
+    assert len(factor_plan._SEEN) == 0 and len(factor_plan._CACHE) == 0
+    # a pattern that stays alive keeps its plan, which the next factorisation uses
     for _ in range(2):
         SuperLUSolver().factorize(J, op.nu_free, **blocks)
+    gc.collect()
     assert len(factor_plan._CACHE) == 1
+    plan = next(iter(factor_plan._CACHE.values()))[0]
+    assert factor_plan.plan_for(J, op.nu_free, blocks["ordering"], blocks["Mp"]) is plan

@@ -107,7 +107,7 @@ def test_a_dropped_pardiso_solver_releases_its_factors():
     per remesh) must release them. Without it every dropped solver of this matrix kept
     ~240 MB (8 solvers: +1.9 GB); with it the resident size stays flat.
 
-    What one factorisation holds is MKL's own figure (about 92 MB here): the resident
+    What one factorisation holds is MKL's own figure (about 94 MB here): the resident
     size's growth at the first factorisation depends on what the allocator already
     had (in one full run it came out at 5 MB or less, after earlier tests freed memory)."""
     from skfem_granular.fluid.boundary import DirichletData

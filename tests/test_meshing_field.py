@@ -1,7 +1,7 @@
 """Size-field meshes around many particles (kind "field", the default for more than
 one particle): quality, gaps resolved, outlines kept, size, determinism, bad input,
-the scene default, and the single particle's graded mesh unchanged."""
-
+the scene default, and the single particle's graded mesh (the same on both paths, its
+size, quality and area)."""
 
 import numpy as np
 import pytest
@@ -333,6 +333,17 @@ def test_single_particle_graded_mesh_is_the_same_on_both_paths():
     # the counts of the reference mesh, up to the platform's round-off in Triangle's input
     assert abs(nv - SINGLE_COUNTS[0]) <= 0.02 * SINGLE_COUNTS[0]
     assert abs(nt - SINGLE_COUNTS[1]) <= 0.02 * SINGLE_COUNTS[1]
+    # what the platform cannot move: the fluid's area (the box less the core polygon, by
+    # the shoelace formula) to round-off, and Triangle's angle bound (34.5 deg measured)
+    x, y = direct.p[:, direct.t]
+    areas = 0.5 * ((x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]))
+    core = np.asarray(dem.core_outlines()[0])
+    polygon = 0.5 * abs(np.dot(core[0], np.roll(core[1], -1))
+                        - np.dot(core[1], np.roll(core[0], -1)))
+    x0, y0, x1, y1 = sc.domain
+    assert areas.min() > 0
+    assert abs(areas.sum() - ((x1 - x0) * (y1 - y0) - polygon)) <= 1e-12 * (x1 - x0) * (y1 - y0)
+    assert meshing.mesh_stats(direct).min_angle >= 30.0
 
 
 def _benchmark(name):

@@ -3,9 +3,10 @@
 scikit-fem's generic ``asm`` re-evaluates basis functions on every call. The
 convection term is the only state-dependent block of the Navier-Stokes
 system, so :class:`ConvectionKernel` keeps the triangles' affine maps and the
-reference element's basis values, gradients and quadrature weights and evaluates ``N(a) b`` vectors and the Newton
-Jacobian's action, and the Jacobian matrix on a fixed sparsity pattern, each in one
-compiled pass over the triangles (:mod:`~skfem_granular.fluid.convection_numba`).
+reference element's basis values, gradients and quadrature weights and evaluates
+``N(a) b`` vectors and the Newton Jacobian's action, and the Jacobian matrix on a
+fixed sparsity pattern, each in one compiled pass over the triangles
+(:mod:`~skfem_granular.fluid.convection_numba`).
 The results equal the forms
 :data:`~skfem_granular.fluid.forms.convection` and
 :data:`~skfem_granular.fluid.forms.convection_newton` (tested).
@@ -89,11 +90,16 @@ class ConvectionKernel:
                  pattern: tuple | None = None):
         self.edofs = edofs  # (6, nel)
         phi, dref, weights = (np.ascontiguousarray(a, dtype=float) for a in reference)
-        nel = edofs.shape[1]
-        if maps.shape != (nel, 5) or phi.shape != (6, weights.size) or dref.shape != (
-                6, 2, weights.size):
-            raise ValueError(f"maps, reference: shapes {maps.shape}, {phi.shape}, "
-                             f"{dref.shape}, {weights.shape} for {nel} triangles")
+        if edofs.ndim != 2 or edofs.shape[0] != 6 or edofs.dtype.kind not in "iu":
+            raise ValueError(f"edofs: shape {edofs.shape}, dtype {edofs.dtype}; expected "
+                             "integers of shape (6, nel)")
+        nel, nq = edofs.shape[1], weights.size
+        for name, a, expected in (("maps", maps, (nel, 5)), ("reference[0] (phi)", phi, (6, nq)),
+                                  ("reference[1] (dref)", dref, (6, 2, nq)),
+                                  ("reference[2] (weights)", weights, (nq,))):
+            if a.shape != expected:
+                raise ValueError(f"{name}: shape {a.shape}, expected {expected} "
+                                 f"({nel} triangles, {nq} quadrature points)")
         self._maps = np.ascontiguousarray(maps, dtype=float)
         self._reference = (phi, dref, weights)
         self.nu = 2 * (int(edofs.max()) + 1)
@@ -121,11 +127,19 @@ class ConvectionKernel:
         from .convection_numba import convection_vector
 
         out = np.zeros(self.nu)
-        convection_vector(np.ascontiguousarray(a, dtype=float), float(ca),
-                          np.ascontiguousarray(w, dtype=float), float(cw),
-                          np.ascontiguousarray(b, dtype=float), self._edofs_e, self._maps,
+        convection_vector(self._velocity("a", a), float(ca), self._velocity("w", w),
+                          float(cw), self._velocity("b", b), self._edofs_e, self._maps,
                           *self._reference, out)
         return out
+
+    def _velocity(self, name: str, v) -> np.ndarray:
+        """``v`` as a contiguous float vector of the ``nu`` velocity DOFs (the compiled
+        passes do not check their indices)."""
+        v = np.ascontiguousarray(v, dtype=float)
+        if v.shape != (self.nu,):
+            raise ValueError(f"{name}: shape {v.shape}, expected ({self.nu},): the velocity "
+                             "DOFs of this kernel's mesh")
+        return v
 
     def apply_relative(self, u: np.ndarray, w: np.ndarray, convection: bool = True
                        ) -> np.ndarray:
@@ -171,10 +185,12 @@ class ConvectionKernel:
         if out is None:
             out = np.zeros(self._indices.size)
         else:
-            if out.shape != self._indices.shape or out.dtype != float:
-                raise ValueError(f"out: {out.shape} {out.dtype} for a pattern of "
-                                 f"{self._indices.size} float entries")
+            if (out.shape != self._indices.shape or out.dtype != float
+                    or not out.flags.c_contiguous):
+                raise ValueError(f"out: shape {out.shape}, dtype {out.dtype}; expected a "
+                                 f"C-contiguous float array of shape ({self._indices.size},) "
+                                 "(one value per entry of the pattern)")
             out[:] = 0.0
-        convection_jacobian(np.ascontiguousarray(u, dtype=float), bool(newton), self._edofs_e,
+        convection_jacobian(self._velocity("u", u), bool(newton), self._edofs_e,
                             self._maps, *self._reference, self.slot, out)
         return out

@@ -31,12 +31,14 @@ from .._jit import lazy_njit
 def _element_basis(maps, e, phi, dref, weights, gx, gy, wphi):  # pragma: no cover (compiled)
     """x- and y-derivatives ``gx``, ``gy`` ``(nq, 6)`` and ``wphi`` ``(6, nq)``
     (``phi_i(q) dx(q)``) of the P2 basis on triangle ``e``."""
-    a00, a01, a10, a11, det = maps[e, 0], maps[e, 1], maps[e, 2], maps[e, 3], maps[e, 4]
+    # maps[e] = (Ainv[0, 0], Ainv[1, 0], Ainv[0, 1], Ainv[1, 1], |det A|): the rows of
+    # Ainv^T, which takes reference gradients to physical ones
+    i00, i10, i01, i11, det = maps[e, 0], maps[e, 1], maps[e, 2], maps[e, 3], maps[e, 4]
     for q in range(weights.shape[0]):
         dxq = det * weights[q]
         for i in range(6):
-            gx[q, i] = a00 * dref[i, 0, q] + a01 * dref[i, 1, q]
-            gy[q, i] = a10 * dref[i, 0, q] + a11 * dref[i, 1, q]
+            gx[q, i] = i00 * dref[i, 0, q] + i10 * dref[i, 1, q]
+            gy[q, i] = i01 * dref[i, 0, q] + i11 * dref[i, 1, q]
             wphi[i, q] = phi[i, q] * dxq
 
 

@@ -11,12 +11,15 @@ unknowns: 0.08 s of sparse format conversions per factorisation saved.
 
 Plans are cached by the memory address of the index arrays (for as long as
 those arrays live: an entry goes with its pattern, before the address can be
-recycled), built the second time a pattern is seen: matrices assembled anew for each factorisation (a coupled
-system's) never pay for a plan they would not reuse.
+recycled), built the second time a pattern is seen: matrices assembled anew for
+each factorisation (a coupled system's) never pay for a plan they would not
+reuse. The cache is shared by the threads of a process (a study's thread pool)
+and guarded by a lock.
 """
 
 from __future__ import annotations
 
+import threading
 import weakref
 from collections import OrderedDict
 
@@ -26,6 +29,8 @@ import scipy.sparse as sp
 _CACHE: OrderedDict = OrderedDict()
 _SEEN: OrderedDict = OrderedDict()
 _CACHE_SIZE = 2
+#: guards both tables; re-entrant, as a dropped pattern's callback may run inside
+_LOCK = threading.RLock()
 
 
 class FactorPlan:
@@ -140,11 +145,13 @@ def _remember(table: OrderedDict, key: tuple, value, arrays, size: int) -> None:
     alive by the cache (the Stokes matrix of a steady solve: 10 MB at 95k DOFs).
     """
     def forget(_ref, table=table, key=key):
-        table.pop(key, None)
+        with _LOCK:
+            table.pop(key, None)
 
-    table[key] = (value, [weakref.ref(_owner(a), forget) for a in arrays])
-    while len(table) > size:
-        table.popitem(last=False)
+    with _LOCK:
+        table[key] = (value, [weakref.ref(_owner(a), forget) for a in arrays])
+        while len(table) > size:
+            table.popitem(last=False)
 
 
 def plan_for(A: sp.csr_matrix, nu: int, perm: np.ndarray, Mp=None) -> FactorPlan | None:
@@ -159,13 +166,14 @@ def plan_for(A: sp.csr_matrix, nu: int, perm: np.ndarray, Mp=None) -> FactorPlan
         mp_key = (Mc.shape, Mc.nnz, hash(Mc.indices.tobytes()), hash(Mc.indptr.tobytes()))
     arrays = (A.indptr, A.indices, perm)
     key = tuple(_address(a) for a in arrays) + (nu, mp_key)
-    entry = _CACHE.get(key)
-    if entry is not None:
-        _CACHE.move_to_end(key)
-        return entry[0]
-    if key not in _SEEN:  # first sight: remember, no plan yet
-        _remember(_SEEN, key, None, arrays, 4 * _CACHE_SIZE)
-        return None
+    with _LOCK:
+        entry = _CACHE.get(key)
+        if entry is not None:
+            _CACHE.move_to_end(key)
+            return entry[0]
+        if key not in _SEEN:  # first sight: remember, no plan yet
+            _remember(_SEEN, key, None, arrays, 4 * _CACHE_SIZE)
+            return None
     if not A.has_canonical_format:
         return None
     plan = FactorPlan(A.indptr, A.indices, nu, perm, Mp)

@@ -231,7 +231,7 @@ class ReferenceBlocks:
 
     def check(self, p: np.ndarray) -> None:
         """Raise when a triangle is inverted (orientation changed) or degenerate at ``p``
-        (signed determinants only; :meth:`maps` gives the maps themselves).
+        (signed determinants only; :meth:`moved` with ``"convection"`` gives the maps).
 
         Raises
         ------
@@ -243,19 +243,3 @@ class ReferenceBlocks:
             k = int(np.argmin(det))
             raise ValueError(f"mesh motion: triangle {k} is inverted or degenerate "
                              f"(signed area {det[k] / 2:.3g}); remesh before moving this far")
-
-    def maps(self, p: np.ndarray):
-        """``Ainv`` ``(nel, 2, 2)`` and ``|det A|`` ``(nel,)`` of the triangles at ``p``.
-
-        Raises
-        ------
-        ValueError
-            When a triangle is inverted (orientation changed) or degenerate.
-        """
-        _, Ainv, det = affine_maps(p, self.t)
-        signed = det * self.orientation
-        if not np.all(signed > 0):
-            k = int(np.argmin(signed))
-            raise ValueError(f"mesh motion: triangle {k} is inverted or degenerate "
-                             f"(signed area {signed[k] / 2:.3g}); remesh before moving this far")
-        return Ainv, signed

@@ -4,9 +4,9 @@
 :meth:`~skfem_granular.fluid.geometry.ReferenceBlocks.moved`: for every triangle it
 forms the affine map from the vertex positions and adds the element matrices of
 ``M``, both viscous forms and ``B`` into the values of their fixed CSR patterns, and
-writes the affine maps the convection kernel takes (five numbers per triangle). The formulas are those of
-:mod:`~skfem_granular.fluid.geometry`; contributions are added in the element
-order of the scatter maps, as ``numpy.bincount`` would.
+writes the affine maps the convection kernel takes (five numbers per triangle). The
+formulas are those of :mod:`~skfem_granular.fluid.geometry`; contributions are added
+in the element order of the scatter maps, as ``numpy.bincount`` would.
 
 Compiled with numba at the first call (:func:`~skfem_granular._jit.lazy_njit`,
 ``cache=True``: compiled once per installation and reused by later processes).

@@ -90,12 +90,13 @@ class PardisoSolver(SaddlePointSolver):
 
     @property
     def factor_memory_mb(self) -> float:
-        """Memory MKL keeps for the current factorisation (MB, as PARDISO reports it:
-        the analysis's permanent part plus the numerical factors, ``iparm[15] +
-        iparm[16]``, 0-based); 0 before the first factorisation."""
+        """Memory MKL keeps for the current factorisation (MB of 10^6 bytes, from what
+        PARDISO reports in KiB: the analysis's permanent part plus the numerical factors,
+        ``iparm[15] + iparm[16]``, 0-based); 0 before the first factorisation."""
         if self._pattern is None:
             return 0.0
-        return float(int(self._solver.iparm[15]) + int(self._solver.iparm[16])) / 1e3
+        kib = int(self._solver.iparm[15]) + int(self._solver.iparm[16])
+        return kib * 1024 / 1e6
 
     def _solve(self, b):
         x = self._phase(33, self._A, np.ascontiguousarray(b, dtype=np.float64))

@@ -60,23 +60,33 @@ class SaddlePointSolver:
     def _scaled(self, A: sp.spmatrix, nu: int) -> sp.csr_matrix:
         """``D A D`` with the pressure scale ``D`` (set as :attr:`_scale`)."""
         A = self._canonical(A)
+        self._scale = self._pressure_scale(A, nu)
+        return self._with_scale(A)
+
+    @staticmethod
+    def _pressure_scale(A: sp.csr_matrix, nu: int) -> np.ndarray:
+        """The diagonal of ``D``: 1 on the velocities, ``median |A_uu diagonal| / max |B^T|``
+        on the pressures (``A`` canonical CSR)."""
         diag = np.abs(A.diagonal()[:nu])
         rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
         upper_right = (rows < nu) & (A.indices >= nu)  # the B^T block
         bmax = np.abs(A.data[upper_right]).max() if upper_right.any() else 1.0
         s = (np.median(diag[diag > 0]) / bmax) if np.any(diag > 0) and bmax > 0 else 1.0
-        self._scale = np.ones(A.shape[0])
-        self._scale[nu:] = s
+        scale = np.ones(A.shape[0])
+        scale[nu:] = s
+        return scale
+
+    def _with_scale(self, A: sp.csr_matrix) -> sp.csr_matrix:
+        """``D A D`` for ``A`` (canonical CSR) and the kept scale :attr:`_scale`."""
+        rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
         # D A D with D = diag(scale), entry by entry as the sparse product computes it
         # ((d_i a_ij) d_j, exact zeros dropped), without two sparse matrix products
         data = (self._scale[rows] * A.data) * self._scale[A.indices]
         keep = data != 0
         if keep.all():
-            DAD = sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
-        else:
-            kept = np.concatenate(([0], np.cumsum(keep)))
-            DAD = sp.csr_matrix((data[keep], A.indices[keep], kept[A.indptr]), shape=A.shape)
-        return DAD
+            return sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
+        kept = np.concatenate(([0], np.cumsum(keep)))
+        return sp.csr_matrix((data[keep], A.indices[keep], kept[A.indptr]), shape=A.shape)
 
     def factorize(self, A: sp.spmatrix, nu: int, **blocks) -> SaddlePointSolver:
         """Prepare to solve with ``A`` (velocity unknowns first, ``nu`` of them)."""

@@ -59,6 +59,21 @@ class SuperLUSolver(SaddlePointSolver):
         :class:`~skfem_granular.fluid.factor_plan.FactorPlan`. ``A`` itself is
         kept (not copied) for the residuals of iterative refinement: do not
         modify it while solving with these factors.
+
+        Parameters
+        ----------
+        A : sparse matrix
+            The saddle-point matrix, velocities first.
+        nu : int
+            Number of velocity unknowns.
+        **blocks
+            ``ordering`` (a permutation of the unknowns to factorise in) and ``Mp``
+            (the pressure mass matrix, shape of the regularisation); others are ignored.
+
+        Raises
+        ------
+        ValueError
+            If ``ordering`` is not a permutation of ``0 .. A.shape[0] - 1``.
         """
         # the previous factors go first: kept until the new ones exist, both sets would be
         # alive at once (95k-DOF steady Newton solve: peak 1206 -> 766 MB)
@@ -72,6 +87,9 @@ class SuperLUSolver(SaddlePointSolver):
             if perm.shape != (A.shape[0],):
                 raise ValueError(f"ordering: length {perm.size}, expected the matrix size "
                                  f"{A.shape[0]}")
+            if not _is_permutation(perm):
+                raise ValueError(f"ordering: must be a permutation of 0 .. {A.shape[0] - 1} "
+                                 "(integers, each once)")
         self._static = self.delta > 0 and A.shape[0] > nu
         self._refined_ok = False  # set by the first refined solve that converges
         plan = (plan_for(A, nu, perm, blocks.get("Mp"))
@@ -103,7 +121,7 @@ class SuperLUSolver(SaddlePointSolver):
         """SuperLU's input for ``D A D - reg``: in the order ``perm`` (transposed, see
         :class:`_PermutedLU`) or unpermuted; None without static pivoting."""
         if not self._static:
-            self._scaled(A, self.nu)  # the pressure scale of the pivoted factorisation
+            self._scale = self._pressure_scale(A, self.nu)  # for the pivoted factorisation
             return None
         n, nu = A.shape[0], self.nu
         S = self._scaled(A, nu)
@@ -125,8 +143,10 @@ class SuperLUSolver(SaddlePointSolver):
         return self._scale * (self._A @ (self._scale * y))
 
     def _pivoted(self):
+        """Threshold-pivoted factors of ``D A D`` with the scale of this factorisation (a
+        solve that falls back here has already scaled its right-hand side by it)."""
         self._static = False
-        self._lu = spla.splu(self._scaled(self._A, self.nu).tocsc(), permc_spec="MMD_AT_PLUS_A",
+        self._lu = spla.splu(self._with_scale(self._A).tocsc(), permc_spec="MMD_AT_PLUS_A",
                              diag_pivot_thresh=0.01, options=dict(SymmetricMode=True))
 
     def solve_correction(self, b):
@@ -175,6 +195,17 @@ class SuperLUSolver(SaddlePointSolver):
             return x
         self._pivoted()
         return self._lu.solve(b)
+
+
+def _is_permutation(perm: np.ndarray) -> bool:
+    """True for an integer array holding each of ``0 .. perm.size - 1`` once."""
+    if perm.dtype.kind not in "iu":
+        return False
+    if perm.size == 0:
+        return True
+    if perm.min() < 0 or perm.max() >= perm.size:
+        return False
+    return bool(np.bincount(perm, minlength=perm.size).max() == 1)
 
 
 class _PermutedLU:
