@@ -61,8 +61,7 @@ class NavierStokesOperator:
         if viscous == "auto":
             viscous = "symmetric" if dirichlet.closed else "laplace"
         self.viscous = viscous
-        K = space.K(viscous)
-        self.K = with_data(K, fluid.viscosity * K.data)  # the space's index arrays, shared
+        self._K_unit = space.K(viscous)  # the space's, unit viscosity (scaled when used)
         self._body_force_spec = body_force
         self.f = self._body_force(body_force)
         nu = space.nu
@@ -77,7 +76,8 @@ class NavierStokesOperator:
         self.nu_free = int(np.count_nonzero(self.free < nu))
         self._zero_p = sp.csr_matrix((space.np_, space.np_))
         self._velocity_blocks = {}  # c_mass -> c rho M + eta K (the last two kept)
-        self._conv_positions = None  # (A_uu, positions of its entries in the convection pattern)
+        # (indices, indptr of A_uu, positions of its entries in the convection pattern)
+        self._conv_positions = None
 
     def moved(self, space) -> NavierStokesOperator:
         """The same operator on a moved discretisation (``space = self.space.moved(p)``).
@@ -92,8 +92,7 @@ class NavierStokesOperator:
         new._Bt = space.reference_blocks.pu.transposed_csr(space.B.data)
         new.__dict__.pop("_B_lower", None)  # built when a matrix is (from B's arrays)
         new.dirichlet = self.dirichlet.moved(space)
-        Kv = space.K(self.viscous)
-        new.K = with_data(Kv, self.fluid.viscosity * Kv.data)
+        new._K_unit = space.K(self.viscous)
         new._velocity_blocks = {}
         new._conv_positions = None
         for cached in ("_reduced_pattern", "_pressure_weights", "_free_pressure_mass",
@@ -139,17 +138,31 @@ class NavierStokesOperator:
                                  shape=(B.shape[0], B.shape[0] + B.shape[1]))
         return sp.hstack([sp.csr_matrix(B), self._zero_p], format="csr")
 
+    @property
+    def K(self) -> sp.csr_matrix:
+        """The viscous block ``eta K``, on the space's pattern (its index arrays).
+
+        Built on each access and not kept (15 MB at 95k DOFs during a steady solve's
+        factorisations): the space keeps the unit-viscosity block, this scales it.
+        """
+        return with_data(self._K_unit, self.fluid.viscosity * self._K_unit.data)
+
     def velocity_block(self, c_mass: float = 0.0) -> sp.csr_matrix:
-        """Linear velocity block ``c rho M + eta K`` (cached per ``c_mass``; do not modify)."""
+        """Linear velocity block ``c rho M + eta K`` (do not modify).
+
+        Cached per ``c_mass > 0`` (the last two); ``eta K`` alone (``c_mass = 0``) is
+        :attr:`K`, built on each call."""
         if c_mass == 0.0:
             return self.K
         A = self._velocity_blocks.get(c_mass)
         if A is None:
             M = self.space.M
+            K = self.K
             if self.space.reference is not self.space:  # a moved mesh: M, K share a pattern
-                A = with_data(M, (c_mass * self.fluid.density) * M.data + self.K.data)
+                A = with_data(M, (c_mass * self.fluid.density) * M.data + K.data)
             else:
-                A = (c_mass * self.fluid.density) * M + self.K
+                A = (c_mass * self.fluid.density) * M + K
+            del K
             if len(self._velocity_blocks) >= 2:
                 self._velocity_blocks.pop(next(iter(self._velocity_blocks)))
             self._velocity_blocks[c_mass] = A
@@ -246,9 +259,11 @@ class NavierStokesOperator:
         return sp.csr_matrix((values, indices, indptr), shape=(n, n))
 
     def _velocity_positions(self, A: sp.csr_matrix) -> np.ndarray | None:
-        """Positions of ``A``'s entries in the convection pattern (cached per ``A``)."""
+        """Positions of ``A``'s entries in the convection pattern (cached per pattern of
+        ``A``: its index arrays, which the cache holds instead of ``A``)."""
         kern = self.space.convection
-        if self._conv_positions is None or self._conv_positions[0] is not A:
+        if (self._conv_positions is None or self._conv_positions[0] is not A.indices
+                or self._conv_positions[1] is not A.indptr):
             pos = None
             if A.has_canonical_format and A.shape == (self.space.nu, self.space.nu):
                 indices, indptr = kern.pattern
@@ -263,8 +278,8 @@ class NavierStokesOperator:
                     pos = None
                 elif keys_n.size < 2**31 - 1:
                     pos = pos.astype(np.int32)  # half the memory (patterns below 2^31)
-            self._conv_positions = (A, pos)
-        return self._conv_positions[1]
+            self._conv_positions = (A.indices, A.indptr, pos)
+        return self._conv_positions[2]
 
     @cached_property
     def _reduced_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

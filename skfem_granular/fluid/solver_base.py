@@ -113,6 +113,13 @@ class SaddlePointSolver:
         """
         return self.solve(b)
 
+    def release(self) -> None:
+        """Drop what the factorisation holds when it will not be solved with again (a
+        Newton loop refactorises at every iteration): its memory is free for the next
+        assembly. After it, :meth:`solve` needs a new :meth:`factorize`. What a solver
+        keeps for its next factorisation (PARDISO's analysis) stays; the default keeps
+        everything."""
+
     def _factorize(self, A, **blocks):
         raise NotImplementedError
 

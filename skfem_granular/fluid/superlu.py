@@ -138,6 +138,10 @@ class SuperLUSolver(SaddlePointSolver):
             return S.tocsc()
         return _PermutedLU.transposed_input(S, perm)
 
+    def release(self) -> None:
+        """Drop the factors and the matrix kept for refinement (the scale stays)."""
+        self._lu = self._A = None
+
     def _scaled_product(self, y: np.ndarray) -> np.ndarray:
         """``D A D y`` for the kept ``A`` and pressure scale ``D``."""
         return self._scale * (self._A @ (self._scale * y))
