@@ -218,3 +218,22 @@ def test_factor_plan_cache_forgets_dropped_patterns(system):
     assert len(factor_plan._CACHE) == 1
     plan = next(iter(factor_plan._CACHE.values()))[0]
     assert factor_plan.plan_for(J, op.nu_free, blocks["ordering"], blocks["Mp"]) is plan
+
+
+def test_a_released_solver_refuses_to_solve_until_factorised_again(system):
+    """``release`` drops the factors (a Newton loop never solves with them twice); a solve
+    after it says so instead of failing inside SuperLU, and a new factorisation solves
+    to round-off again."""
+    _, op, _, J, b = system
+    blocks = op.solver_blocks(A0)
+    with pytest.raises(RuntimeError, match="SuperLUSolver: factorize before solving"):
+        SuperLUSolver().solve(b)
+    s = SuperLUSolver().factorize(J, op.nu_free, **blocks)
+    x = s.solve(b)
+    s.release()
+    for solve in (s.solve, s.solve_correction):
+        with pytest.raises(RuntimeError, match="no factorisation held"):
+            solve(b)
+    y = s.factorize(J, op.nu_free, **blocks).solve(b)
+    assert np.array_equal(x, y)
+    assert np.linalg.norm(J @ y - b) <= 1e-12 * np.linalg.norm(b)

@@ -99,6 +99,8 @@ class SaddlePointSolver:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """Solve ``A x = b`` with the matrix of the last :meth:`factorize`."""
+        if self._scale is None:
+            raise RuntimeError(f"{type(self).__name__}: factorize before solving")
         t0 = time.perf_counter()
         x = self._scale * self._solve(self._scale * b)
         self.stats.solves += 1

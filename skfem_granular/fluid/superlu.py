@@ -164,6 +164,7 @@ class SuperLUSolver(SaddlePointSolver):
         """
         if not self._static:
             return self.solve(b)
+        self._check_factors()
         t0 = time.perf_counter()
         bs = self._scale * b
         y = self._lu.solve(bs)
@@ -177,7 +178,13 @@ class SuperLUSolver(SaddlePointSolver):
         self.stats.time_solve += time.perf_counter() - t0
         return x
 
+    def _check_factors(self) -> None:
+        if getattr(self, "_lu", None) is None:
+            raise RuntimeError("SuperLUSolver: no factorisation held (factorize was not "
+                               "called, or release dropped it): factorize before solving")
+
     def _solve(self, b):
+        self._check_factors()
         x = self._lu.solve(b)
         if not self._static:
             return x
