@@ -226,8 +226,9 @@ def test_a_released_solver_refuses_to_solve_until_factorised_again(system):
     to round-off again."""
     _, op, _, J, b = system
     blocks = op.solver_blocks(A0)
-    with pytest.raises(RuntimeError, match="SuperLUSolver: factorize before solving"):
-        SuperLUSolver().solve(b)
+    for solve in (SuperLUSolver().solve, SuperLUSolver().solve_correction):
+        with pytest.raises(RuntimeError, match="SuperLUSolver: factorize before solving"):
+            solve(b)
     s = SuperLUSolver().factorize(J, op.nu_free, **blocks)
     x = s.solve(b)
     s.release()

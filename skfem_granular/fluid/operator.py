@@ -162,7 +162,6 @@ class NavierStokesOperator:
                 A = with_data(M, (c_mass * self.fluid.density) * M.data + K.data)
             else:
                 A = (c_mass * self.fluid.density) * M + K
-            del K
             if len(self._velocity_blocks) >= 2:
                 self._velocity_blocks.pop(next(iter(self._velocity_blocks)))
             self._velocity_blocks[c_mass] = A

@@ -113,7 +113,7 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
         dx = lin.solve_correction(-r[free]) if newton else lin.solve(-r[free])
         # never solved with again: the next residual and Jacobian (and the first time, the
         # convection kernel and the Newton pattern) are built without these factors
-        # (95k-DOF steady solve: the peak, after the Stokes step, 625 -> 613 MB)
+        # (95k-DOF steady solve: the peak, after the Stokes step, 625 -> 600 MB of RSS)
         lin.release()
         times["solve"] += time.perf_counter() - t0
         return dx

@@ -50,6 +50,8 @@ class SuperLUSolver(SaddlePointSolver):
         self.delta = delta
         self.refine_rtol = refine_rtol
         self.max_refine = max_refine
+        self._lu = self._A = None  # the factors and the matrix they refine against
+        self._static = False
 
     def factorize(self, A: sp.spmatrix, nu: int, **blocks) -> SuperLUSolver:
         """Prepare to solve with ``A`` (velocity unknowns first, ``nu`` of them).
@@ -179,7 +181,7 @@ class SuperLUSolver(SaddlePointSolver):
         return x
 
     def _check_factors(self) -> None:
-        if getattr(self, "_lu", None) is None:
+        if self._lu is None:
             raise RuntimeError("SuperLUSolver: no factorisation held (factorize was not "
                                "called, or release dropped it): factorize before solving")
 
