@@ -3,7 +3,7 @@ merging, relaxation, counts, quality bounds, boundaries, determinism."""
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import meshing
@@ -247,6 +247,8 @@ def test_quality_bounds(name):
 
 
 @settings(max_examples=30, deadline=None)
+# found by hypothesis: 18.1 deg before the repair's last rounds kept their nodes in place
+@example(n=11, r=0.00035793937467468927, u=0.75, v=0.0, rot=4.5, g=2.0, sigma=1.59765625)
 @given(n=st.integers(10, 40), r=st.floats(0.2e-3, 0.6e-3), u=st.floats(0.0, 1.0),
        v=st.floats(0.0, 1.0), rot=st.floats(0.0, 6.3), g=st.floats(1.0, 3.0),
        sigma=st.one_of(st.none(), st.floats(1.05, 1.6)))
