@@ -150,3 +150,4 @@ def test_a_dropped_coupling_and_its_space_are_freed_without_the_cycle_collector(
     finally:
         if enabled:
             gc.enable()
+

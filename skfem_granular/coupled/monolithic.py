@@ -30,8 +30,12 @@ before that lag grows past a fraction of the element size
 (:mod:`skfem_granular.coupled.transfer`).
 
 The corrector is a chord iteration on the factorised BDF2-Stokes matrix; when it
-contracts by less than :data:`REFRESH_RATE` per iteration it continues on the
-coupled Newton Jacobian factorised at the iterate.
+contracts too slowly (:func:`~skfem_granular.fluid.newton.chord_stalled`, the test
+the fluid's BDF2 integrator makes too) the coupled Newton Jacobian is factorised at
+the iterate and the iteration continues on it (later steps with the same ``a0``
+reuse it). GMRES preconditioned by the held factorisation instead was measured on the
+collapse's contact phase: 12-25 iterations per correction, as costly as a new SuperLU
+factorisation at 20k unknowns.
 """
 
 from __future__ import annotations
@@ -46,14 +50,18 @@ from .. import timestep as ts
 from ..fluid.errors import ConvergenceError
 from ..fluid.factor_cache import FactorCache
 from ..fluid.linsolve import make_solver
-from ..fluid.newton import chord_converged, newton_iterate
+from ..fluid.newton import chord_converged, chord_stalled, newton_iterate
 from .rigid import RigidParticles
 
-#: When the chord iteration contracts by less than this per iteration (the ALE convection
-#: ``(u - w) . grad u`` with ``w`` over the whole moving region, or strong convection, far
-#: from the chord operator), the coupled Newton Jacobian is factorised at the iterate and
-#: the iteration continues on it (and later steps with the same ``a0`` reuse it).
-REFRESH_RATE = 0.3
+#: Further chord iterations the corrector accepts (at the contraction rate it shows)
+#: before it factorises the coupled Newton Jacobian at the iterate
+#: (:func:`~skfem_granular.fluid.newton.chord_stalled`). A chord iteration costs a
+#: back-substitution and a residual, a refresh an assembly and a factorisation: about 25
+#: iterations at 20k unknowns. Measured on the collapse to 0.08 s (400 steps, 12.7k-21k
+#: unknowns): 3 gave 184 refreshes and 4.3 iterations a step, 10 gave 93 and 6.2, 20 gave
+#: fewer refreshes again but more time (the moving mesh in closing gaps makes a refreshed
+#: Jacobian stale within a few steps).
+CHORD_PATIENCE = 10.0
 
 
 class MonolithicCoupling(RigidParticles):
@@ -89,7 +97,7 @@ class MonolithicCoupling(RigidParticles):
 
     def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
                  convection: bool = True, rotation: bool = True, solver: str = "auto",
-                 newton_tol: float = 1e-8, max_iterations: int = 15, imposed=None):
+                 newton_tol: float = 1e-8, max_iterations: int = 30, imposed=None):
         super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
                          rotation=rotation, imposed=imposed)
         self._xi_imposed = None  # the imposed particles' rigid velocities of the step
@@ -350,7 +358,7 @@ class MonolithicCoupling(RigidParticles):
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
         solve = self.solver.solve_correction if self.op.convection else self.solver.solve
-        last = {"dn": 0.0, "refresh": False, "refreshed": 0, "refresh_time": 0.0}
+        last = {"dn": None, "refresh": False, "refreshed": 0, "refresh_time": 0.0}
 
         def stop(it, dz, z):
             if not self.op.convection and geometry is None:
@@ -360,9 +368,9 @@ class MonolithicCoupling(RigidParticles):
                 raise ConvergenceError(f"coupled step dt={dt:.3e}: corrector produced NaN")
             tol = self.newton_tol * max(scale, float(np.abs(z[: self.nu_z]).max()))
             prev, last["dn"] = last["dn"], dn
-            done = chord_converged(dn, prev, it, tol)
-            if (not done and it >= last["refreshed"] + 2 and dn > REFRESH_RATE * prev
-                    and (self.op.convection or geometry is not None)):
+            done = chord_converged(dn, 0.0 if prev is None else prev, it, tol)
+            if (not done and it >= last["refreshed"] + 2
+                    and chord_stalled(dn, prev, tol, CHORD_PATIENCE)):
                 # the chord operator (the BDF2-Stokes matrix, or an older Jacobian) is too
                 # far from this step's: a fresh Newton Jacobian before the next correction
                 last["refresh"] = True

@@ -325,10 +325,14 @@ class CoupledStepper:
         dt_prev = None if euler else s.dt_prev
         u_prev = None if euler else s.u_prev
         xi_prev = None if euler else s.xi_prev
-        # linear extrapolation of the last two states as the Newton initial guess
-        w = 0.0 if s.dt_prev is None else step / s.dt_prev
+        # the Newton initial guess: linear extrapolation of the last two states, except
+        # through contacts: a contact's impulse is in the DEM's velocities at the end of its
+        # substeps, and extrapolating across the last one's would double it
+        w = 0.0 if s.dt_prev is None or euler else step / s.dt_prev
         u_guess = s.u_n if s.u_prev is None else s.u_n + w * (s.u_n - s.u_prev)
         xi_guess = xi_n if s.xi_prev is None else xi_n + w * (xi_n - s.xi_prev)
+        if touching:
+            xi_guess = dem.particles.v.copy()
         a0, a1, a2 = ts.bdf2_coefficients(step, dt_prev)
         geometry = None
         if self.ale:
@@ -478,10 +482,13 @@ class CoupledStepper:
         return self.coupling.flow(self.state.x)
 
     def collect_timings(self) -> dict:
-        """Add the coupling's phase times to :attr:`timings` (and zero them); returns it."""
+        """Add the coupling's phase times to :attr:`timings` (and zero them); returns it.
+
+        The coupling's dict is zeroed in place: its factorisation cache books into the
+        same dict (a new one would leave later factorisations out of every total)."""
         for k, v in self.coupling.timings.items():
             self.timings[k] = self.timings.get(k, 0.0) + v
-        self.coupling.timings = dict.fromkeys(self.coupling.timings, 0.0)
+            self.coupling.timings[k] = 0.0
         return self.timings
 
     # ------------------------------------------------------------------ checkpoints

@@ -155,6 +155,12 @@ class ConvectionKernel:
         """Newton linearisation at ``u`` applied to ``du``: ``N(u) du + N(du) u``."""
         return self.apply(u, du) + self.apply(du, u)
 
+    def relative_jacobian_action(self, u: np.ndarray, w: np.ndarray, du: np.ndarray
+                                 ) -> np.ndarray:
+        """Linearisation of the ALE convection ``((u - w) . grad) u`` (:meth:`apply_relative`)
+        at ``u`` applied to ``du``: ``((u - w) . grad) du + (du . grad) u``."""
+        return self._vector(u, 1.0, w, 1.0, du) + self.apply(du, u)
+
     def jacobian(self, u: np.ndarray, newton: bool = True) -> sp.csr_matrix:
         """Matrix of the convection term linearised at ``u`` (see :meth:`jacobian_data`)."""
         data = self.jacobian_data(u, newton)

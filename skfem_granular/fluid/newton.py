@@ -16,6 +16,7 @@ callers is only what they pass in:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -66,3 +67,22 @@ def chord_converged(dn: float, prev: float, it: int, tol: float) -> bool:
     """
     rate = dn / prev if it > 1 and prev > 0 else 1.0
     return dn <= tol or (rate < 0.5 and dn * rate / (1.0 - rate) <= tol)
+
+
+
+def chord_stalled(dn: float, prev: float | None, tol: float, patience: float = 3.0) -> bool:
+    """Whether a chord iteration is too slow to go on: it diverges, or, at its current
+    contraction rate ``dn / prev``, it would need more than ``patience`` further
+    iterations to bring the update ``dn`` down to ``tol``.
+
+    Both time-dependent correctors ask this: the fluid's BDF2 integrator then goes on
+    with GMRES on the exact Jacobian preconditioned by the same factorisation, the
+    monolithic coupling factorises the coupled Newton Jacobian at the iterate.
+    """
+    if prev is None or prev <= 0.0 or dn <= tol:
+        return False
+    rate = dn / prev
+    if rate >= 1.0:
+        return True
+    return math.log(tol / dn) / math.log(max(rate, 1e-300)) > patience
+

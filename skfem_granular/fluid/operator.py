@@ -76,8 +76,10 @@ class NavierStokesOperator:
         self.nu_free = int(np.count_nonzero(self.free < nu))
         self._zero_p = sp.csr_matrix((space.np_, space.np_))
         self._velocity_blocks = {}  # c_mass -> c rho M + eta K (the last two kept)
-        # (indices, indptr of A_uu, positions of its entries in the convection pattern)
-        self._conv_positions = None
+        # [(indices, indptr of A_uu, the convection pattern's indices, positions of A_uu's
+        # entries in that pattern)]: one list shared by the operator and its moved copies,
+        # whose blocks and kernels keep the reference patterns
+        self._conv_positions = [None]
 
     def moved(self, space) -> NavierStokesOperator:
         """The same operator on a moved discretisation (``space = self.space.moved(p)``).
@@ -94,7 +96,6 @@ class NavierStokesOperator:
         new.dirichlet = self.dirichlet.moved(space)
         new._K_unit = space.K(self.viscous)
         new._velocity_blocks = {}
-        new._conv_positions = None
         for cached in ("_reduced_pattern", "_pressure_weights", "_free_pressure_mass",
                        "_free_pressure_laplace"):
             new.__dict__.pop(cached, None)  # geometric caches: the moved mesh's own
@@ -261,8 +262,9 @@ class NavierStokesOperator:
         """Positions of ``A``'s entries in the convection pattern (cached per pattern of
         ``A``: its index arrays, which the cache holds instead of ``A``)."""
         kern = self.space.convection
-        if (self._conv_positions is None or self._conv_positions[0] is not A.indices
-                or self._conv_positions[1] is not A.indptr):
+        held = self._conv_positions[0]
+        if (held is None or held[0] is not A.indices or held[1] is not A.indptr
+                or held[2] is not kern.pattern[0]):
             pos = None
             if A.has_canonical_format and A.shape == (self.space.nu, self.space.nu):
                 indices, indptr = kern.pattern
@@ -277,8 +279,8 @@ class NavierStokesOperator:
                     pos = None
                 elif keys_n.size < 2**31 - 1:
                     pos = pos.astype(np.int32)  # half the memory (patterns below 2^31)
-            self._conv_positions = (A.indices, A.indptr, pos)
-        return self._conv_positions[2]
+            held = self._conv_positions[0] = (A.indices, A.indptr, kern.pattern[0], pos)
+        return held[3]
 
     @cached_property
     def _reduced_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -324,6 +326,28 @@ class NavierStokesOperator:
         elif self.convection:
             ru = ru + self.fluid.density * sp_.convection.residual(u)
         return np.concatenate([ru, sp_.B @ u])
+
+    def jacobian_action(self, x: np.ndarray, dx: np.ndarray, A_uu: sp.spmatrix,
+                        w_mesh: np.ndarray | None = None) -> np.ndarray:
+        """The Jacobian of :meth:`residual` at ``x`` applied to ``dx`` (full vectors), matrix-free.
+
+        ``A_uu`` is the velocity block of the residual (``c rho M + eta K``). With
+        convection the term is linearised at ``u``: ``rho (N(u - w) du + N(du) u)``;
+        an ALE Stokes operator has ``-rho N(w) du``. Fixed DOFs of ``dx`` should be zero.
+        """
+        sp_ = self.space
+        u = x[: sp_.nu]
+        du, dp = sp_.split(dx)
+        ru = A_uu @ du + self._Bt @ dp
+        kern = sp_.convection if (self.convection or w_mesh is not None) else None
+        rho = self.fluid.density
+        if self.convection and w_mesh is None:
+            ru += rho * kern.jacobian_action(u, du)
+        elif self.convection:
+            ru += rho * kern.relative_jacobian_action(u, w_mesh, du)
+        elif kern is not None:
+            ru += rho * kern.apply(-w_mesh, du)
+        return np.concatenate([ru, sp_.B @ du])
 
     def apply_dirichlet(self, x: np.ndarray, t: float | None = None) -> np.ndarray:
         """Write the boundary values (and the pinned pressure) into ``x``."""
