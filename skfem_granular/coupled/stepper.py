@@ -261,26 +261,48 @@ class CoupledStepper:
         self.remeshes += 1
 
     # ------------------------------------------------------------------ physics
-    def external_forces(self):
-        """Buoyancy-reduced gravity ``(m - rho_f A_core) g``: force ``(2, K)``, torque ``(K,)``."""
+    def weight(self) -> np.ndarray:
+        """Buoyancy-reduced gravity ``(m - rho_f A_core) g`` of the particles, ``(2, K)``.
+
+        Buoyancy is that of the core, the outline the fluid sees (the hydrostatic
+        pressure is left out of the solved pressure, see the design notes)."""
         rho_f = self.scene.fluid.density
-        F = np.outer(self.g, self.dem.mass) - rho_f * np.outer(self.g, self.core_area)
-        return F, np.zeros(self.dem.n)
+        return np.outer(self.g, self.dem.mass) - rho_f * np.outer(self.g, self.core_area)
 
-    def _dem_predictor(self, dt, F_fluid, T_fluid):
-        """Subcycle the DEM over ``dt`` with the fluid force held.
+    def callback_forces(self, t: float):
+        """The DEM's ``force_callbacks`` ``f(dem, t) -> (F (2, K), T (K,))``, summed.
 
+        A coupled step evaluates them once, at its end time ``t`` with the particles where
+        the step starts, and holds them over the step as it holds the other external
+        forces (the DEM's substeps through contacts see the same held value)."""
+        dem = self.dem
+        F, T = np.zeros((2, dem.n)), np.zeros(dem.n)
+        for f in dem.force_callbacks:
+            Fc, Tc = f(dem, t)
+            F = F + np.broadcast_to(np.asarray(Fc, dtype=float), (2, dem.n))
+            T = T + np.broadcast_to(np.asarray(Tc, dtype=float), (dem.n,))
+        return F, T
+
+    def _dem_predictor(self, dt, F_held, T_held):
+        """Subcycle the DEM over ``dt`` with the fluid force and the callbacks' held.
+
+        ``F_held``, ``T_held``: the fluid force of the last step plus the callbacks'
+        (:meth:`callback_forces`; the DEM does not evaluate its callbacks again here).
         Returns the mean contact force ``(2, K)`` and torque ``(K,)`` over the step
         (from the momentum change, so impulses of short contacts count in full) and
         the poses ``(3, K)`` at the end of the step.
         """
         dem = self.dem
         buoyancy = self.scene.fluid.density * np.outer(self.g, self.core_area)
-        dem.external_force[...] = F_fluid - buoyancy
-        dem.external_torque[...] = T_fluid
+        dem.external_force[...] = F_held - buoyancy
+        dem.external_torque[...] = T_held
         v0 = dem.velocities.copy()
         w0 = dem.angular_velocities.copy()
-        dem.advance(dt)
+        callbacks, dem.force_callbacks = dem.force_callbacks, []
+        try:
+            dem.advance(dt)
+        finally:
+            dem.force_callbacks = callbacks
         F_c = (dem.mass * (dem.velocities - v0) / dt - np.outer(self.g, dem.mass)
                - dem.external_force)
         T_c = dem.inertia * (dem.angular_velocities - w0) / dt - dem.external_torque
@@ -310,14 +332,15 @@ class CoupledStepper:
         """
         s, dem = self.state, self.dem
         q_n, xi_n = dem.particles.q.copy(), dem.particles.v.copy()
-        F_ext, T_ext = self.external_forces()
+        F_cb, T_cb = self.callback_forces(s.t + step)
+        F_ext, T_ext = self.weight() + F_cb, T_cb
         t0 = time.perf_counter()
         touching = False
         q_dem = None  # the DEM's poses at the end of the step, when it was advanced
         # no contact can start within this step: the DEM's substeps would only integrate
         # the rigid-body motion that the coupled step integrates itself
         if self.contacts_active and self.dem.contact_possible(step, float(np.hypot(*self.g))):
-            F_c, T_c, q_dem = self._dem_predictor(step, s.F_held, s.T_held)
+            F_c, T_c, q_dem = self._dem_predictor(step, s.F_held + F_cb, s.T_held + T_cb)
             touching = self._contact_force_acted(xi_n, step, F_ext, F_c, T_c)
             F_ext, T_ext = F_ext + F_c, T_ext + T_c
         self.timings["dem"] += time.perf_counter() - t0
