@@ -40,7 +40,8 @@ from skfem_granular.simulation import Simulation, checkpoint
 
 SEED = 16
 SINGLE = ["single-particle", "--t-end", "3e-4", "--vtu-every", "2", "--checkpoint-every", "5"]
-KNOWN = {"history.csv", "summary.json", "checkpoint.npz", "flow.pvd", "particles.pvd"}
+LOCK = ".skfem-granular.lock"  # a killed run leaves its lock; the next run takes it over
+KNOWN = {"history.csv", "summary.json", "checkpoint.npz", "flow.pvd", "particles.pvd", LOCK}
 FLOOR_TOML = """\
 # two hexagons dropped onto the floor: contacts and remeshing
 [domain]
@@ -123,6 +124,7 @@ def _assert_complete(out: Path, *, finished: bool = False) -> int:
         frames
     if finished:
         assert not partial, partial
+        assert LOCK not in names  # released at the end
     for n in sorted(frames):
         m = meshio.read(out / n)
         assert m.points.shape[0] > 0

@@ -230,8 +230,7 @@ def load(directory) -> dict:
                              "(a checkpoint of an earlier version; loading it could run code "
                              "from the file): run again with this version to get a "
                              "checkpoint.npz")
-        raise ValueError(f"resume: no {FILENAME} in {str(directory)!r} (run with "
-                         "output.checkpoint_every > 0 first)")
+        raise ValueError(f"resume: no {FILENAME} in {str(directory)!r} ({_why_none(d)})")
     where = f"checkpoint {str(path)!r}"
     header, arrays = plain.read(path, where=where)
     extra = sorted(set(header) - HEADER_KEYS)
@@ -263,6 +262,20 @@ def load(directory) -> dict:
     data["history"] = _history_rows(data["history"], where, K)
     _check(data, where, K)
     return data
+
+
+def _why_none(d: Path) -> str:
+    """Why a folder has no checkpoint, for the one line that says so."""
+    from ..io import partial_files
+    from .folder import run_files
+
+    if any(p.name.startswith(".partial-checkpoint") for p in partial_files(d)):
+        return ("the run was killed while writing its first checkpoint; start it again "
+                "with --overwrite")
+    if run_files(d):
+        return ("the run there wrote none: checkpoints come every output.checkpoint_every "
+                "steps and when SIGINT/SIGTERM stop a run; start it again with --overwrite")
+    return "no run's output there: run with output.checkpoint_every > 0 first"
 
 
 def _fail(where, path, problem):
