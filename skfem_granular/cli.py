@@ -67,6 +67,14 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--checkpoint-every", type=int, metavar="N",
                      help="override output.checkpoint_every: checkpoint.npz every N steps "
                           "(0: none; SIGINT/SIGTERM always write one)")
+    run.add_argument("--max-steps", type=float, metavar="N",
+                     help="refuse a run of more time steps than this (default 1e5)")
+    run.add_argument("--max-elements", type=float, metavar="N",
+                     help="refuse a mesh of more triangles than this (estimated before "
+                          "meshing; default 2e6)")
+    run.add_argument("--max-memory", type=float, metavar="GB",
+                     help="refuse a run whose systems need more memory than this (estimated "
+                          "before meshing; default 16 GB)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     sub.add_parser("scenes", help="list the bundled scenes (names for 'run')")
     ren = sub.add_parser("render", help="picture (PNG) or animation (GIF/MP4) of a run's output")
@@ -190,7 +198,7 @@ def _command(argv) -> int:
                 raise ValueError("--resume DIR takes no scene, --mesh, --dt, --tol, --out, "
                                  "--vtu-every, --checkpoint-every or --overwrite (the "
                                  "checkpoint holds them); only --t-end may change")
-            sim = Simulation.resume(args.resume, t_end=args.t_end)
+            sim = Simulation.resume(args.resume, t_end=args.t_end, budget=_budget(args))
             return _finish_run(sim, args)
         if not args.scene:
             raise ValueError("run: give a scene file (or --resume DIR)")
@@ -214,12 +222,27 @@ def _command(argv) -> int:
             scene = replace(scene, checkpoint_every=args.checkpoint_every)
         out = args.out or scene.output_dir or f"out/{scene.name}"
         _check_out("--out" if args.out else "output.directory", out)
-        sim = Simulation(scene, output_dir=out, overwrite=args.overwrite)
+        sim = Simulation(scene, output_dir=out, overwrite=args.overwrite,
+                         budget=_budget(args))
     except (ValueError, OSError) as exc:  # OSError: files the scene names (read, output)
         msg = " ".join(str(exc).split())  # always one line
         print(f"skfem-granular: error: {msg}", file=sys.stderr)
         return 2
     return _finish_run(sim, args)
+
+
+def _budget(args):
+    """The run's :class:`~skfem_granular.simulation.Budget` from ``--max-*``."""
+    from .simulation import Budget
+
+    kw = {}
+    if args.max_steps is not None:
+        kw["max_steps"] = args.max_steps
+    if args.max_elements is not None:
+        kw["max_elements"] = args.max_elements
+    if args.max_memory is not None:
+        kw["max_memory"] = args.max_memory * 1e9
+    return Budget(**kw)
 
 
 def _scene_path(arg: str):

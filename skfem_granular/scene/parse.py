@@ -18,6 +18,9 @@ GRID_KEYS = {"nx", "ny", "sides", "radius", "spacing", "origin", "density", "cor
              "jitter", "seed"}
 #: largest ``sides`` of a regular polygon (the paper's outlines have 24)
 MAX_SIDES = 1000
+#: most particles in a scene (``[[particles]]`` and ``[grid]`` together), checked before
+#: any of them is built (the bundled scenes have at most 210)
+MAX_PARTICLES = 10_000
 
 
 def _table(name: str, value) -> dict:
@@ -137,6 +140,18 @@ def grid_particles(d: dict) -> list[ParticleSpec]:
     return out
 
 
+def _check_count(parts: list, grid) -> None:
+    """Refuse more than :data:`MAX_PARTICLES` particles before building any."""
+    n = len(parts)
+    if isinstance(grid, dict):
+        nx, ny = grid.get("nx"), grid.get("ny")
+        if all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (nx, ny)):
+            n += nx * ny
+    if n > MAX_PARTICLES:
+        raise ValueError(f"particles: {n} in the scene ([[particles]] and [grid]); at most "
+                         f"{MAX_PARTICLES}")
+
+
 def scene_kwargs(data: dict) -> dict:
     """Keyword arguments of :class:`Scene` from the TOML dictionary."""
     if not isinstance(data, dict):
@@ -170,6 +185,7 @@ def scene_kwargs(data: dict) -> dict:
             kw["fluid"] = Fluid(**fl)
         except ValueError as exc:
             raise ValueError(str(exc).replace("Fluid.", "fluid.")) from None
+    _check_count(parts, data.get("grid"))
     parts = [_particle(f"particles[{i}]", p) for i, p in enumerate(parts)]
     if "grid" in data:
         parts += grid_particles(data["grid"])

@@ -47,6 +47,7 @@ from ..coupled.stepper import CoupledStepper, SimulationError
 from ..dem import DEMSystem
 from ..io import History, check_writable
 from ..scene import Scene
+from .budget import Budget
 from .dry import DryStepper
 from .effects import contacts_needed, scene_warnings
 from .folder import OutputFolder
@@ -95,6 +96,10 @@ class Simulation:
         when the run starts). Without it, a folder holding another run's files
         is refused with a :class:`~skfem_granular.simulation.folder.FolderInUseError`
         (a ``ValueError``); continue such a run with :meth:`resume`.
+    budget : Budget, optional
+        Limits on steps, mesh triangles and memory, checked against estimates before
+        the mesh is built (:mod:`~skfem_granular.simulation.budget`; default
+        ``Budget()``); a run beyond them raises a ``BudgetError`` (a ``ValueError``).
 
     Examples
     --------
@@ -103,10 +108,13 @@ class Simulation:
     ...     print(t, step.force[1, 0], sim.dem.velocities[1, 0])
     """
 
-    def __init__(self, scene: Scene, output_dir=None, *, mesh=None, overwrite: bool = False):
+    def __init__(self, scene: Scene, output_dir=None, *, mesh=None, overwrite: bool = False,
+                 budget: Budget | None = None):
         if not isinstance(scene, Scene):
             scene = Scene.from_toml(scene)
         self.scene = scene
+        budget = Budget() if budget is None else budget
+        budget.check_steps(scene)
         self.timings = defaultdict(float)
         out = output_dir if output_dir is not None else scene.output_dir
         self.output_dir = None if out is None else Path(out)
@@ -141,14 +149,18 @@ class Simulation:
             self.stepper = DryStepper(scene, self.dem, self.timings)
         else:
             t0 = time.perf_counter()
-            mesh = build_mesh(scene, self.dem.core_outlines()) if mesh is None else mesh
+            if mesh is None:
+                cores = self.dem.core_outlines()
+                budget.check_mesh(scene, cores)
+                mesh = build_mesh(scene, cores)
             self.timings["meshing"] += time.perf_counter() - t0
             self.stepper = CoupledStepper(scene, self.dem, mesh,
                                           contacts_active=self.contacts_active,
                                           timings=self.timings)
 
     @classmethod
-    def resume(cls, directory, t_end: float | None = None) -> Simulation:
+    def resume(cls, directory, t_end: float | None = None, *,
+               budget: Budget | None = None) -> Simulation:
         """Continue a run from the checkpoint in ``directory``.
 
         Parameters
@@ -157,6 +169,8 @@ class Simulation:
             Output directory of a run with ``output.checkpoint_every > 0``.
         t_end : float, optional
             New end time (default: the scene's).
+        budget : Budget, optional
+            Limits the continued run is checked against (see :class:`Simulation`).
 
         Returns
         -------
@@ -187,7 +201,8 @@ class Simulation:
                                  "with overwrite to end earlier)")
             scene = replace(scene, time=replace(scene.time, t_end=t_end))
         saved = data["stepper"]
-        sim = cls(replace(scene, output_dir=None), mesh=saved.get("mesh"))  # no folder check
+        sim = cls(replace(scene, output_dir=None), mesh=saved.get("mesh"),  # no folder check
+                  budget=budget)
         sim.scene, sim.output_dir, sim.folder = scene, Path(directory), folder
         # the entries this version's stepper and DEM hand over, no more and no fewer
         where = f"checkpoint {str(Path(directory) / checkpoint.FILENAME)!r}"
