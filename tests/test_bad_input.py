@@ -421,8 +421,9 @@ def _node(header, path):
     return node
 
 
-def _crafted(tmp, mutate, raw=None):
-    """Resume from a valid checkpoint changed by ``mutate(header, arrays)``."""
+def _crafted(tmp, mutate, raw=None, **special):
+    """Resume from a valid checkpoint changed by ``mutate(header, arrays)``; ``special``:
+    :func:`_special_file` (a zip bomb, a huge declared shape, a deep header)."""
     import json
     import zipfile
 
@@ -432,7 +433,9 @@ def _crafted(tmp, mutate, raw=None):
     mutate(header, arrays)
     d = tmp / "crafted"
     d.mkdir(exist_ok=True)
-    if raw is None:
+    if special:
+        _special_file(d / "checkpoint.npz", header, arrays, **special)
+    elif raw is None:
         plain.write(d / "checkpoint.npz", header, arrays)
     else:  # members written as given (plain.write would refuse them)
         with zipfile.ZipFile(d / "checkpoint.npz", "w") as zf:
@@ -443,6 +446,51 @@ def _crafted(tmp, mutate, raw=None):
             for name, blob in raw.items():
                 zf.writestr(name, blob)
     return Simulation.resume(d)
+
+
+def _nested(depth):
+    node = 0
+    for _ in range(depth):
+        node = [node]
+    return node
+
+
+def _coincide(h, a):
+    """Two vertices of the first triangle at one point."""
+    p, t = a["stepper.mesh.mesh.doflocs"].copy(), a["stepper.mesh.mesh.t"]
+    p[:, t[1, 0]] = p[:, t[0, 0]]
+    a["stepper.mesh.mesh.doflocs"] = p
+
+
+def _special_file(path, header, arrays, bomb=0, huge=None, deep=0):
+    """A checkpoint whose ``stepper.state.u_n`` member is a zip bomb (``bomb`` bytes of zeros,
+    deflated to a few hundred kB) or declares the shape ``huge`` (header and ``.npy`` alike,
+    the data absent), or whose header is ``deep`` lists deep (as text: JSON cannot write it)."""
+    import json
+    import zipfile
+
+    key = "stepper.state.u_n"
+    n = bomb // 8 if bomb else huge[0] if huge else None
+    if n is not None:
+        _node(header, key)["shape"] = [n]
+    text = json.dumps(header)
+    if deep:
+        text = text[:-1] + ', "deep": ' + "[" * deep + "]" * deep + "}"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("header.json", text)
+        for k, v in arrays.items():
+            if k != key or n is None:
+                with zf.open(f"{k}.npy", "w") as f:
+                    np.lib.format.write_array(f, v, allow_pickle=False)
+                continue
+            info = zipfile.ZipInfo(f"{k}.npy")
+            info.compress_type = zipfile.ZIP_DEFLATED if bomb else zipfile.ZIP_STORED
+            with zf.open(info, "w", force_zip64=True) as f:
+                np.lib.format.write_array_header_1_0(
+                    f, {"descr": "<f8", "fortran_order": False, "shape": (n,)})
+                for _ in range(bomb // 2**24):
+                    f.write(bytes(2**24))
+                f.write(bytes(bomb % 2**24))
 
 
 def _set(path, value):
@@ -555,6 +603,22 @@ CHECKPOINTS = [
      ["frames.flow[0]", "must be (t, 'flow_NNNNN.vtu')"]),
     ("checkpoint-history-rows",
      lambda t: _crafted(t, _set("k", 5)), ["k: = 5: must equal the number of history rows (2)"]),
+    ("checkpoint-zip-bomb", lambda t: _crafted(t, lambda h, a: None, bomb=400_000_000),
+     ["stepper.state.u_n: compressed member (400000128 bytes inflated)",
+      "arrays must be stored uncompressed"]),
+    ("checkpoint-declared-shape-huge",
+     lambda t: _crafted(t, lambda h, a: None, huge=(10**9,)),
+     ["stepper.state.u_n: member of", "shape (1000000000,) takes 8000000128"]),
+    ("checkpoint-nested-500-deep",
+     lambda t: _crafted(t, _set("stepper.deep", _nested(500))),
+     ["header.json: nested deeper than 64 levels"]),
+    ("checkpoint-nested-100000-deep", lambda t: _crafted(t, lambda h, a: None, deep=100_000),
+     ["header.json: nested deeper than 64 levels"]),
+    ("checkpoint-mesh-vertices-coincide", lambda t: _crafted(t, _coincide),
+     ["stepper.mesh.mesh: t: triangle 0 has no area (its vertices coincide"]),
+    ("checkpoint-mesh-one-point",
+     lambda t: _crafted(t, _array("stepper.mesh.mesh.doflocs", np.zeros_like)),
+     ["stepper.mesh.mesh: t: triangle 0 has no area", "338 such triangles"]),
     ("checkpoint-not-a-zip",
      lambda t: ((t / "nz").mkdir(), (t / "nz" / "checkpoint.npz").write_text("PK?"),
                 Simulation.resume(t / "nz")),
@@ -593,3 +657,37 @@ def test_library_bad_input_value_error(tmp_path, call, expected):
 
 def test_tables_are_big_enough():
     assert len(CLI) + len(LIB) >= 25
+
+
+_PEAK = """\
+import resource, sys
+import skfem_granular.simulation.checkpoint
+from skfem_granular.simulation import Simulation
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+try:
+    Simulation.resume(sys.argv[1])
+except ValueError as exc:
+    print(exc)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before)
+"""
+
+
+@pytest.mark.parametrize("row", ["checkpoint-zip-bomb", "checkpoint-declared-shape-huge",
+                                 "checkpoint-nested-500-deep", "checkpoint-nested-100000-deep",
+                                 "checkpoint-mesh-one-point"])
+def test_crafted_checkpoint_refusal_peak_memory_below_100_mb(tmp_path, row):
+    """Measured in a fresh process: the peak resident memory the refusal adds to the peak of
+    the imports (before: the 1.6 MB bomb inflated to 1.6 GB first). Measured 0.0 MB for
+    every row (the process's whole peak, imports included, 68 MB)."""
+    import subprocess
+    import sys
+
+    call, expected = next(c[1:] for c in CHECKPOINTS if c[0] == row)
+    with pytest.raises(ValueError):
+        call(tmp_path)  # writes tmp_path / "crafted" / "checkpoint.npz"
+    out = subprocess.run([sys.executable, "-c", _PEAK, str(tmp_path / "crafted")],
+                         capture_output=True, text=True, timeout=120)
+    message, added_kb = out.stdout.strip().splitlines()
+    assert expected[0] in message, out
+    print(f"{row}: {int(added_kb) / 1e3:.1f} MB added")
+    assert int(added_kb) < 100_000, f"{row}: {int(added_kb) / 1e3:.1f} MB"

@@ -89,6 +89,13 @@ def _mesh(d):
         raise ValueError("t: must be a (3, T) integer array, T >= 1")
     if t.min() < 0 or t.max() >= p.shape[1]:
         raise ValueError(f"t: vertex indices must be in [0, {p.shape[1]})")
+    a, b, c = p[:, t[0]], p[:, t[1]], p[:, t[2]]
+    area = 0.5 * np.abs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+    scale = float(np.ptp(p, axis=1).max()) ** 2
+    bad = np.flatnonzero(~(area > 1e-14 * scale))
+    if bad.size:
+        raise ValueError(f"t: triangle {bad[0]} has no area (its vertices coincide or lie on "
+                         f"a line; {bad.size} such triangles): not a mesh")
     mesh = skfem.MeshTri(p, t.astype(np.int32), sort_t=False)
     b = _index_dict("boundaries", d["boundaries"], mesh.facets.shape[1])
     s = _index_dict("subdomains", d["subdomains"], t.shape[1])
