@@ -120,6 +120,13 @@ def test_resume_refuses_a_t_end_before_the_checkpoint(finished, capsys):
     assert _hashes(out) == before
 
 
+def test_resume_to_an_absurd_t_end_is_one_line(finished, capsys):
+    out, before = finished
+    assert main(["run", "--resume", str(out), "--t-end", "1e300", "--no-progress"]) == 2
+    _one_line(capsys, "time.t_end / time.dt = 1e+300 / 1e-05", "more than max_steps")
+    assert _hashes(out) == before
+
+
 def test_resume_of_a_finished_run_to_its_end_changes_no_row(finished, capsys):
     out, before = finished
     assert main(["run", "--resume", str(out), "--no-progress"]) == 0
