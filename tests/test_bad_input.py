@@ -706,3 +706,55 @@ def test_crafted_checkpoint_refusal_peak_memory_below_100_mb(tmp_path, row):
     assert expected[0] in message, out
     print(f"{row}: {int(added_kb) / 1e3:.1f} MB added")
     assert int(added_kb) < 100_000, f"{row}: {int(added_kb) / 1e3:.1f} MB"
+
+
+# ---------------------------------------------------------------- the docs' table
+DOC_PAGE = ROOT / "docs" / "bad_input.md"
+DOC_HEAD = """\
+# Bad input: every refusal
+
+Generated from the rows of `tests/test_bad_input.py` by
+`python scripts/bad_input_table.py` (a test checks that this page is up to
+date). Every row is a test: the command line (a scene with one changed value,
+or the options shown) must stop with exit status 2 and exactly one line on
+stderr that contains the parts listed, before any work and without a
+traceback; a library call must raise a `ValueError` of one line, from this
+package's code. Folder, signal and write failures are tested in
+`tests/test_output_folder.py` ({ref}`the output folder <output-folder>`).
+"""
+
+
+def _cell(text) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _what(text, args) -> str:
+    """The scene lines a row changes (against the valid scene) and its options."""
+    if text is None:
+        return "`run " + " ".join(args) + "`"
+    base = set(scene().splitlines())
+    changed = [ln for ln in text.splitlines() if ln and ln not in base]
+    parts = [f"`{ln}`" for ln in changed[:4]] + (["..."] if len(changed) > 4 else [])
+    opts = " ".join(a for a in args if a != "NO-OUT")
+    return " ".join(parts + ([f"`{opts}`"] if opts else [])) or "(see the test)"
+
+
+def table_markdown() -> str:
+    """The docs page: one table of the command line's rows, one of the library's."""
+    lines = [DOC_HEAD, "## Command line (exit status 2)", "",
+             "| case | given | the one line contains |", "|---|---|---|"]
+    for case, text, args, expected in CLI:
+        parts = "; ".join(f"`{_cell(e)}`" for e in expected)
+        lines.append(f"| {case} | {_cell(_what(text, args))} | {parts} |")
+    lines += ["", "## Library calls and checkpoints (`ValueError`)", "",
+              "| case | the message contains |", "|---|---|"]
+    for row in LIB:
+        case, expected = (row.id, row.values[2]) if hasattr(row, "values") else (row[0], row[2])
+        parts = "; ".join(f"`{_cell(e)}`" for e in expected)
+        lines.append(f"| {case} | {parts} |")
+    return "\n".join(lines) + "\n"
+
+
+def test_docs_table_is_generated_from_these_rows():
+    assert DOC_PAGE.read_text() == table_markdown(), \
+        "docs/bad_input.md is out of date: run python scripts/bad_input_table.py"
