@@ -285,6 +285,10 @@ def _finish_run(sim, args) -> int:
     except ValueError as exc:  # the folder taken by another run since the start
         print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the lock file could not be written (a full disk, permissions)
+        print(f"skfem-granular: error: output: {exc.strerror or exc}"
+              + (f": {exc.filename}" if exc.filename else ""), file=sys.stderr)
+        return 1
     print(format_summary(result.summary))
     print(f"output: {result.output_dir}/ (flow.pvd, particles.pvd, history.csv, summary.json)")
     stopped = result.summary.get("stopped_by")

@@ -75,12 +75,24 @@ def test_new_run_into_a_finished_runs_folder_is_refused(finished, capsys):
     assert _hashes(out) == before
 
 
-def test_failing_scene_into_a_finished_runs_folder_changes_nothing(finished, capsys):
-    """A scene whose run would fail at once (its step cannot converge) never gets to write."""
+def test_failing_run_into_a_finished_runs_folder_changes_nothing(finished, capsys,
+                                                                  monkeypatch):
+    """A run whose first step fails is refused before it starts: the old files stay."""
+    from skfem_granular.coupled import stepper
+
+    def fail(self, *a, **k):
+        raise stepper.SimulationError("no convergence (made up)")
+        yield  # a generator, as the stepper's evolve
+
+    monkeypatch.setattr(stepper.CoupledStepper, "evolve", fail)
     out, before = finished
-    assert main(["run", *SHORT, "--out", str(out), "--dt", "1e-4", "--t-end", "1e-3"]) == 2
+    assert main(["run", *SHORT, "--out", str(out)]) == 2
     _one_line(capsys, "holds another run's output")
     assert _hashes(out) == before
+    fresh = out.parent / "fresh"  # the same run into an empty folder fails with exit status 1
+    assert main(["run", *SHORT, "--out", str(fresh)]) == 1
+    _one_line(capsys, "no convergence (made up)", "history and last good state written")
+    assert json.loads((fresh / "summary.json").read_text())["status"] == "failed"
 
 
 def test_overwrite_removes_the_old_runs_files_first(finished, tmp_path, capsys):
@@ -312,3 +324,14 @@ def test_partial_files_are_removed_on_any_start(tmp_path, capsys):
     assert main(["run", *SHORT, "--out", str(out)]) == 0
     capsys.readouterr()
     assert not list(out.glob(".partial-*"))
+
+
+def test_full_disk_at_the_lock_file_is_one_line(tmp_path, capsys, monkeypatch):
+    from skfem_granular.simulation import folder
+
+    def full(*a, **k):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp_path / "x" / LOCK_NAME))
+
+    monkeypatch.setattr(folder.os, "open", full)
+    assert main(["run", *SHORT, "--out", str(tmp_path / "x")]) == 1
+    _one_line(capsys, "output: No space left on device", LOCK_NAME)
