@@ -57,6 +57,23 @@ class RunOutput:
         self.log = CSVLog(sim.history, self.dir / "history.csv")
         self._flushed = time.monotonic()
 
+    def record(self, step) -> None:
+        """Append the history row of an accepted step (a ``StepReport``)."""
+        dem = self.sim.dem
+        acc = step.acceleration
+        self.sim.history.append(
+            step.t, step.dt, step.iterations, fluid_energy=step.fluid_energy,
+            error=step.error, x=dem.positions[0], y=dem.positions[1], angle=dem.angles,
+            vx=dem.velocities[0], vy=dem.velocities[1], omega=dem.angular_velocities,
+            ax=acc[0], ay=acc[1], Fx=step.force[0], Fy=step.force[1], torque=step.torque,
+            contacts=dem.contact_count())
+
+    def frame_due(self, k: int, t: float) -> bool:
+        """Whether step ``k`` (at time ``t``) writes a frame: every ``vtu_every``, and the last."""
+        sc = self.sim.scene
+        last = t >= sc.time.t_end - 1e-9 * sc.time.dt
+        return last or (sc.vtu_every > 0 and k % sc.vtu_every == 0)
+
     def _timed(self, write) -> None:
         t0 = time.perf_counter()
         with self.signals.critical():

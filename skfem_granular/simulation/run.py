@@ -292,16 +292,20 @@ class Simulation:
         Raises
         ------
         SimulationError
-            When a step does not converge; the history and the last good state
-            are written first.
+            When a step does not converge (the history and the last good state are
+            written first) or the output cannot be written (a full disk; the files
+            written before stay intact).
+        FolderInUseError
+            When the first step is asked for and the output folder holds another run's
+            files or a live run's lock (nothing is written).
         """
         t_start = time.perf_counter()
+        if self.folder is not None:
+            self.folder.acquire()  # refuses another run's output or a live lock: nothing written
         bar = self._progress_bar(progress)
         self.status, self.stopped_by, self.stopped_at_once = "running", None, False
         signals = StopSignals()
         out = RunOutput(self, signals, self._resumed_frames)
-        if self.folder is not None:
-            self.folder.acquire()  # refuses another run's output or a live lock: nothing written
         try:
             with signals, threadpool_limits(limits=1, user_api="blas"):
                 try:
@@ -356,8 +360,8 @@ class Simulation:
     def _after_step(self, t, step, out: RunOutput) -> bool:
         """Record the accepted step: history row, frame, checkpoint, flush; True if checkpointed."""
         self.steps_done += 1
-        self._record(step)
-        if self._frame_due(self.steps_done, t):
+        out.record(step)
+        if out.frame_due(self.steps_done, t):
             out.frame(t)
             out.flush()
         every = self.scene.checkpoint_every
@@ -420,22 +424,6 @@ class Simulation:
         except StopNow:  # a second signal between two steps: the generator writes, then ends
             steps.close()
         return self.result
-
-    # ------------------------------------------------------------------ output
-    def _frame_due(self, k, t):
-        every = self.scene.vtu_every
-        last = t >= self.scene.time.t_end - 1e-9 * self.scene.time.dt
-        return last or (every > 0 and k % every == 0)
-
-    def _record(self, step):
-        dem = self.dem
-        acc = step.acceleration
-        self.history.append(
-            step.t, step.dt, step.iterations, fluid_energy=step.fluid_energy,
-            error=step.error, x=dem.positions[0], y=dem.positions[1], angle=dem.angles,
-            vx=dem.velocities[0], vy=dem.velocities[1], omega=dem.angular_velocities,
-            ax=acc[0], ay=acc[1], Fx=step.force[0], Fy=step.force[1], torque=step.torque,
-            contacts=dem.contact_count())
 
     def fluid_energy(self) -> float:
         """Kinetic energy ``rho u.M u / 2`` of the fluid now (J per unit depth)."""
