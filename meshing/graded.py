@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from .cleanup import Sizing, truncate, wall_nodes
 from .geometry import (
+    MAX_ELEMENTS,
     as_domain,
     as_particles,
     centroid,
@@ -136,6 +137,16 @@ def sizing_of(all_rings: Sequence[Rings]) -> Sizing:
     s = np.array([r.sigma - 1.0 for r in all_rings])
     r0 = np.array([r.r0 for r in all_rings])
     return Sizing(C, dl, s, r0)
+
+
+def check_ring_nodes(all_rings: Sequence[Rings], sigma, delta_l) -> None:
+    """Refuse circles with more than :data:`~meshing.geometry.MAX_ELEMENTS` nodes in all
+    (an upper bound of the mesh's nodes, counted before any is placed)."""
+    n = sum(int(r.counts.sum()) for r in all_rings)
+    if n > MAX_ELEMENTS:
+        raise ValueError(f"delta_l = {delta_l!r}, sigma = {sigma!r}: the graded circles would "
+                         f"hold {n:.3g} nodes, more than {MAX_ELEMENTS:.0e}; use a larger "
+                         "delta_l or sigma")
 
 
 def check_rounds(relax_rounds: object) -> None:
@@ -255,6 +266,7 @@ def build_graded(domain: object, particles: object, *, sigma: float | None = Non
         c = centroid(P)
         r_max = float(np.max(np.hypot(*(D - c[:, None]))))
         all_rings.append(rings(P, sigma, r_max))
+    check_ring_nodes(all_rings, sigma, delta_l)
     sizing = sizing_of(all_rings)
     cand = []
     for p, (P, ring) in enumerate(zip(outlines, all_rings, strict=True)):

@@ -5,10 +5,15 @@
   of a bundled scene: ``run single-particle``) and writes ``flow.pvd`` (VTU frames),
   ``particles.pvd``, ``history.csv`` (growing as the run goes) and ``summary.json`` into the
   output directory, and ``checkpoint.npz`` every N steps;
-  ``skfem-granular run --resume DIR [--t-end T]`` continues from its checkpoint.
+  ``skfem-granular run --resume DIR [--t-end T]`` continues from its checkpoint (not to a
+  time before it). An output directory belongs to one run: a run refuses one that holds
+  another run's files unless given ``--overwrite`` (the old files are removed first) and
+  refuses one a live run is writing to (its lock file).
   SIGINT (Ctrl-C) or SIGTERM stop a run at the end of the current step with everything
-  written and a checkpoint to resume from; the exit code is then 128 + the signal's number
-  (130, 143). A run that fails (a step that does not converge) exits with code 1.
+  written and a checkpoint to resume from; a second signal stops it at once (history and
+  summary written, the last checkpoint kept); the exit code is then 128 + the signal's
+  number (130, 143), also for a signal during start-up. A run that fails (a step that does
+  not converge, output that cannot be written: a full disk) exits with code 1 and one line.
 - ``skfem-granular scenes`` lists the bundled scenes (name and first comment line).
 - ``skfem-granular render DIR --png PATH | --animation PATH`` draws a run's output.
 - ``skfem-granular study single-particle|faxen`` runs an accuracy-vs-cost study.
@@ -49,6 +54,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--mesh-motion", choices=["auto", "ale", "fixed"],
                      help="override coupling.mesh_motion (ale: the mesh follows the particles)")
     run.add_argument("--out", help="output directory (default: the scene's output.directory)")
+    run.add_argument("--overwrite", action="store_true",
+                     help="replace another run's output in the output directory (its files are "
+                          "removed first)")
     run.add_argument("--t-end", type=float, help="override time.t_end (s)")
     run.add_argument("--dt", type=float, help="override time.dt (s)")
     run.add_argument("--tol", type=float,
@@ -59,6 +67,14 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--checkpoint-every", type=int, metavar="N",
                      help="override output.checkpoint_every: checkpoint.npz every N steps "
                           "(0: none; SIGINT/SIGTERM always write one)")
+    run.add_argument("--max-steps", type=float, metavar="N",
+                     help="refuse a run of more time steps than this (default 1e5)")
+    run.add_argument("--max-elements", type=float, metavar="N",
+                     help="refuse a mesh of more triangles than this (estimated before "
+                          "meshing; default 2e6)")
+    run.add_argument("--max-memory", type=float, metavar="GB",
+                     help="refuse a run whose systems need more memory than this (estimated "
+                          "before meshing; default 16 GB)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     sub.add_parser("scenes", help="list the bundled scenes (names for 'run')")
     ren = sub.add_parser("render", help="picture (PNG) or animation (GIF/MP4) of a run's output")
@@ -139,13 +155,27 @@ def main(argv=None) -> int:
     """
     if argv is None:
         gc.freeze()
-    code = _main(argv)
+    code = _main(argv, whole_process=argv is None)
     if argv is None:
         gc.freeze()
     return code
 
 
-def _main(argv) -> int:
+def _main(argv, whole_process: bool = False) -> int:
+    """:func:`main` with SIGINT/SIGTERM before and after a run's loop reported in one line
+    (the whole process: ignored once the exit status is decided)."""
+    from .simulation.signals import StopNow, startup_signals
+
+    try:
+        with startup_signals(ignore_after=whole_process):
+            return _command(argv)
+    except StopNow as exc:  # SIGINT/SIGTERM before a run's loop (reading, meshing)
+        print(f"skfem-granular: stopped by {exc.name} during start-up (nothing run)",
+              file=sys.stderr)
+        return exc.exit_status
+
+
+def _command(argv) -> int:
     try:
         args = _parser().parse_args(argv)
     except _UsageError as exc:
@@ -163,11 +193,12 @@ def _main(argv) -> int:
     try:
         if args.resume is not None:
             if (args.scene or args.mesh or args.dt is not None or args.out or args.tol
-                    or args.vtu_every is not None or args.checkpoint_every is not None):
+                    or args.vtu_every is not None or args.checkpoint_every is not None
+                    or args.overwrite):
                 raise ValueError("--resume DIR takes no scene, --mesh, --dt, --tol, --out, "
-                                 "--vtu-every or --checkpoint-every (the checkpoint holds "
-                                 "them); only --t-end may change")
-            sim = Simulation.resume(args.resume, t_end=args.t_end)
+                                 "--vtu-every, --checkpoint-every or --overwrite (the "
+                                 "checkpoint holds them); only --t-end may change")
+            sim = Simulation.resume(args.resume, t_end=args.t_end, budget=_budget(args))
             return _finish_run(sim, args)
         if not args.scene:
             raise ValueError("run: give a scene file (or --resume DIR)")
@@ -191,12 +222,27 @@ def _main(argv) -> int:
             scene = replace(scene, checkpoint_every=args.checkpoint_every)
         out = args.out or scene.output_dir or f"out/{scene.name}"
         _check_out("--out" if args.out else "output.directory", out)
-        sim = Simulation(scene, output_dir=out)
+        sim = Simulation(scene, output_dir=out, overwrite=args.overwrite,
+                         budget=_budget(args))
     except (ValueError, OSError) as exc:  # OSError: files the scene names (read, output)
         msg = " ".join(str(exc).split())  # always one line
         print(f"skfem-granular: error: {msg}", file=sys.stderr)
         return 2
     return _finish_run(sim, args)
+
+
+def _budget(args):
+    """The run's :class:`~skfem_granular.simulation.Budget` from ``--max-*``."""
+    from .simulation import Budget
+
+    kw = {}
+    if args.max_steps is not None:
+        kw["max_steps"] = args.max_steps
+    if args.max_elements is not None:
+        kw["max_elements"] = args.max_elements
+    if args.max_memory is not None:
+        kw["max_memory"] = args.max_memory * 1e9
+    return Budget(**kw)
 
 
 def _scene_path(arg: str):
@@ -236,15 +282,32 @@ def _finish_run(sim, args) -> int:
     except SimulationError as exc:
         print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 1
+    except ValueError as exc:  # the folder taken by another run since the start
+        print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # the lock file could not be written (a full disk, permissions)
+        print(f"skfem-granular: error: output: {exc.strerror or exc}"
+              + (f": {exc.filename}" if exc.filename else ""), file=sys.stderr)
+        return 1
     print(format_summary(result.summary))
     print(f"output: {result.output_dir}/ (flow.pvd, particles.pvd, history.csv, summary.json)")
     stopped = result.summary.get("stopped_by")
     if stopped:
-        t = result.summary["t_end"]
-        print(f"stopped by {stopped} at t = {t:.6g} s; continue with: skfem-granular run "
-              f"--resume {result.output_dir}", file=sys.stderr)
+        print(_stopped_line(result), file=sys.stderr)
         return 128 + int(getattr(signal, stopped))
     return 0
+
+
+def _stopped_line(result) -> str:
+    """What a stopped run tells: where it stopped and how to continue."""
+    s, out = result.summary, result.output_dir
+    where = (f"stopped by {s['stopped_by']}{' at once' if s.get('stopped_at_once') else ''} "
+             f"at t = {s['t_end']:.6g} s")
+    if out is None:
+        return where
+    if (out / "checkpoint.npz").exists():
+        return f"{where}; continue with: skfem-granular run --resume {out}"
+    return f"{where}; no checkpoint was written yet, so it cannot be resumed"
 
 
 def _render(args) -> int:

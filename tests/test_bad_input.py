@@ -158,7 +158,9 @@ CLI = [
     ("coordinates-overflow",
      scene(domain="[domain]\nbox = [0.0, 0.0, 3e200, 11e200]\n",
            particles=particle(center="[1.5e200, 5.5e200]").replace("0.5e-3", "0.5e200")),
-     [], ["particles[0].radius = 5e+199", "< 1e+60"]),
+     [], ["domain.box = [0.0, 0.0, 3e+200, 1.1e+201]", "within +-1000"]),
+    ("radius-overflow", scene(particles=particle().replace("0.5e-3", "0.5e200")), [],
+     ["particles[0].radius = 5e+199", "<= 1000"]),
     ("density-missing", scene(particles=particle().replace("density = 2650.0\n", "")), [],
      ["particles[0].density: missing", "> 0"]),
     ("density-bool", scene(particles=particle().replace("2650.0", "true")), [],
@@ -198,6 +200,44 @@ CLI = [
     ("cli-dt-not-a-number", scene(), ["--dt", "abc"],
      ["argument --dt: invalid float value: 'abc'"]),
     ("cli-mesh-choice", scene(), ["--mesh", "hex"], ["argument --mesh: invalid choice: 'hex'"]),
+    # bounds on every input: absurd values and runaway budgets, refused before any work
+    ("fluid-density-huge", scene(fluid="[fluid]\ndensity = 1e300\nviscosity = 1e-3\n"), [],
+     ["fluid.density = 1e+300", "<= 100000 kg/m^3"]),
+    ("viscosity-huge", scene(fluid="[fluid]\ndensity = 1000.0\nviscosity = 1e300\n"), [],
+     ["fluid.viscosity = 1e+300", "must be in [1e-09, 1e+09] Pa s"]),
+    ("t_end-huge", scene("[time]\nt_end = 1e300\ndt = 1e-5\n"), [],
+     ["time.t_end / time.dt = 1e+300 / 1e-05", "more than max_steps = 1e+05", "--max-steps"]),
+    ("dt-tiny", scene("[time]\nt_end = 1e-3\ndt = 1e-9\n"), [],
+     ["= 1e+06 steps", "more than max_steps = 1e+05", "--max-steps"]),
+    ("cli-max-steps-lower", scene(), ["--max-steps", "1"],
+     ["= 2 steps", "more than max_steps = 1", "--max-steps"]),
+    ("cli-max-steps-negative", scene(), ["--max-steps", "-1"],
+     ["max_steps (--max-steps) = -1.0", "finite number >= 1"]),
+    ("graded-delta_l-tiny", scene("[mesh]\nkind = 'graded'\ndelta_l = 1e-7\n"), [],
+     ["mesh.delta_l = 1e-07", "about 6.78e+08 triangles", "max_elements = 2e+06",
+      "--max-elements"]),
+    ("uniform-h-small-memory", scene("[mesh]\nkind = 'uniform'\nh = 1e-5\n"), [],
+     ["mesh.h = 1e-05", "unknowns would need about", "more than max_memory = 16 GB",
+      "--max-memory"]),
+    ("cli-max-memory-lower", scene(), ["--max-memory", "0.001"],
+     ["unknowns would need about", "more than max_memory = 0.001 GB"]),
+    ("too-many-particles",
+     scene(time=TIME + "[grid]\nnx = 100\nny = 100\nradius = 0.5e-3\n"
+           "origin = [1e-3, 1e-3]\n"),
+     [], ["particles: 10001 in the scene", "at most 10000"]),
+    ("angle-huge", scene(particles=particle(extra="angle = 1e300\n")), [],
+     ["particles[0].angle = 1e+300", ">= -1000 and <= 1000"]),
+    ("domain-box-huge", scene(domain="[domain]\nbox = [0.0, 0.0, 3.0e-3, 1e300]\n"), [],
+     ["domain.box = [0.0, 0.0, 0.003, 1e+300]", "4 finite numbers within +-1000"]),
+    ("wall_thickness-huge",
+     scene(domain="[domain]\nbox = [0.0, 0.0, 3.0e-3, 11.0e-3]\nwall_thickness = 1e300\n"),
+     [], ["domain.wall_thickness = 1e+300", "<= 1000"]),
+    ("grid-spacing-huge",
+     scene(particles="", time=TIME + "[grid]\nnx = 2\nny = 1\nradius = 0.5e-3\n"
+           "spacing = 1e300\norigin = [1e-3, 1e-3]\n"),
+     [], ["grid.spacing = 1e+300", "> 0.001 and <= 1000"]),
+    ("particle-center-huge", scene(particles=particle(center="[1e300, 5.5e-3]")), [],
+     ["particles[0].center = [1e+300, 0.0055]", "within +-1000"]),
     ("scene-file-missing", None, ["{TMP}/missing.toml"], ["scene file", "not found"]),
     ("scene-file-is-directory", None, ["{TMP}"], ["scene file", "is a directory"]),
 ]
@@ -396,8 +436,9 @@ def _node(header, path):
     return node
 
 
-def _crafted(tmp, mutate, raw=None):
-    """Resume from a valid checkpoint changed by ``mutate(header, arrays)``."""
+def _crafted(tmp, mutate, raw=None, **special):
+    """Resume from a valid checkpoint changed by ``mutate(header, arrays)``; ``special``:
+    :func:`_special_file` (a zip bomb, a huge declared shape, a deep header)."""
     import json
     import zipfile
 
@@ -407,7 +448,9 @@ def _crafted(tmp, mutate, raw=None):
     mutate(header, arrays)
     d = tmp / "crafted"
     d.mkdir(exist_ok=True)
-    if raw is None:
+    if special:
+        _special_file(d / "checkpoint.npz", header, arrays, **special)
+    elif raw is None:
         plain.write(d / "checkpoint.npz", header, arrays)
     else:  # members written as given (plain.write would refuse them)
         with zipfile.ZipFile(d / "checkpoint.npz", "w") as zf:
@@ -418,6 +461,51 @@ def _crafted(tmp, mutate, raw=None):
             for name, blob in raw.items():
                 zf.writestr(name, blob)
     return Simulation.resume(d)
+
+
+def _nested(depth):
+    node = 0
+    for _ in range(depth):
+        node = [node]
+    return node
+
+
+def _coincide(h, a):
+    """Two vertices of the first triangle at one point."""
+    p, t = a["stepper.mesh.mesh.doflocs"].copy(), a["stepper.mesh.mesh.t"]
+    p[:, t[1, 0]] = p[:, t[0, 0]]
+    a["stepper.mesh.mesh.doflocs"] = p
+
+
+def _special_file(path, header, arrays, bomb=0, huge=None, deep=0):
+    """A checkpoint whose ``stepper.state.u_n`` member is a zip bomb (``bomb`` bytes of zeros,
+    deflated to a few hundred kB) or declares the shape ``huge`` (header and ``.npy`` alike,
+    the data absent), or whose header is ``deep`` lists deep (as text: JSON cannot write it)."""
+    import json
+    import zipfile
+
+    key = "stepper.state.u_n"
+    n = bomb // 8 if bomb else huge[0] if huge else None
+    if n is not None:
+        _node(header, key)["shape"] = [n]
+    text = json.dumps(header)
+    if deep:
+        text = text[:-1] + ', "deep": ' + "[" * deep + "]" * deep + "}"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("header.json", text)
+        for k, v in arrays.items():
+            if k != key or n is None:
+                with zf.open(f"{k}.npy", "w") as f:
+                    np.lib.format.write_array(f, v, allow_pickle=False)
+                continue
+            info = zipfile.ZipInfo(f"{k}.npy")
+            info.compress_type = zipfile.ZIP_DEFLATED if bomb else zipfile.ZIP_STORED
+            with zf.open(info, "w", force_zip64=True) as f:
+                np.lib.format.write_array_header_1_0(
+                    f, {"descr": "<f8", "fortran_order": False, "shape": (n,)})
+                for _ in range(bomb // 2**24):
+                    f.write(bytes(2**24))
+                f.write(bytes(bomb % 2**24))
 
 
 def _set(path, value):
@@ -530,6 +618,22 @@ CHECKPOINTS = [
      ["frames.flow[0]", "must be (t, 'flow_NNNNN.vtu')"]),
     ("checkpoint-history-rows",
      lambda t: _crafted(t, _set("k", 5)), ["k: = 5: must equal the number of history rows (2)"]),
+    ("checkpoint-zip-bomb", lambda t: _crafted(t, lambda h, a: None, bomb=400_000_000),
+     ["stepper.state.u_n: compressed member (400000128 bytes inflated)",
+      "arrays must be stored uncompressed"]),
+    ("checkpoint-declared-shape-huge",
+     lambda t: _crafted(t, lambda h, a: None, huge=(10**9,)),
+     ["stepper.state.u_n: member of", "shape (1000000000,) takes 8000000128"]),
+    ("checkpoint-nested-500-deep",
+     lambda t: _crafted(t, _set("stepper.deep", _nested(500))),
+     ["header.json: nested deeper than 64 levels"]),
+    ("checkpoint-nested-100000-deep", lambda t: _crafted(t, lambda h, a: None, deep=100_000),
+     ["header.json: nested deeper than 64 levels"]),
+    ("checkpoint-mesh-vertices-coincide", lambda t: _crafted(t, _coincide),
+     ["stepper.mesh.mesh: t: triangle 0 has no area (its vertices coincide"]),
+    ("checkpoint-mesh-one-point",
+     lambda t: _crafted(t, _array("stepper.mesh.mesh.doflocs", np.zeros_like)),
+     ["stepper.mesh.mesh: t: triangle 0 has no area", "338 such triangles"]),
     ("checkpoint-not-a-zip",
      lambda t: ((t / "nz").mkdir(), (t / "nz" / "checkpoint.npz").write_text("PK?"),
                 Simulation.resume(t / "nz")),
@@ -568,3 +672,89 @@ def test_library_bad_input_value_error(tmp_path, call, expected):
 
 def test_tables_are_big_enough():
     assert len(CLI) + len(LIB) >= 25
+
+
+_PEAK = """\
+import resource, sys
+import skfem_granular.simulation.checkpoint
+from skfem_granular.simulation import Simulation
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+try:
+    Simulation.resume(sys.argv[1])
+except ValueError as exc:
+    print(exc)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before)
+"""
+
+
+@pytest.mark.parametrize("row", ["checkpoint-zip-bomb", "checkpoint-declared-shape-huge",
+                                 "checkpoint-nested-500-deep", "checkpoint-nested-100000-deep",
+                                 "checkpoint-mesh-one-point"])
+def test_crafted_checkpoint_refusal_peak_memory_below_100_mb(tmp_path, row):
+    """Measured in a fresh process: the peak resident memory the refusal adds to the peak of
+    the imports (before: the 1.6 MB bomb inflated to 1.6 GB first). Measured 0.0 MB for
+    every row (the process's whole peak, imports included, 68 MB)."""
+    import subprocess
+    import sys
+
+    call, expected = next(c[1:] for c in CHECKPOINTS if c[0] == row)
+    with pytest.raises(ValueError):
+        call(tmp_path)  # writes tmp_path / "crafted" / "checkpoint.npz"
+    out = subprocess.run([sys.executable, "-c", _PEAK, str(tmp_path / "crafted")],
+                         capture_output=True, text=True, timeout=120)
+    message, added_kb = out.stdout.strip().splitlines()
+    assert expected[0] in message, out
+    print(f"{row}: {int(added_kb) / 1e3:.1f} MB added")
+    assert int(added_kb) < 100_000, f"{row}: {int(added_kb) / 1e3:.1f} MB"
+
+
+# ---------------------------------------------------------------- the docs' table
+DOC_PAGE = ROOT / "docs" / "bad_input.md"
+DOC_HEAD = """\
+# Bad input: every refusal
+
+Generated from the rows of `tests/test_bad_input.py` by
+`python scripts/bad_input_table.py` (a test checks that this page is up to
+date). Every row is a test: the command line (a scene with one changed value,
+or the options shown) must stop with exit status 2 and exactly one line on
+stderr that contains the parts listed, before any work and without a
+traceback; a library call must raise a `ValueError` of one line, from this
+package's code. Folder, signal and write failures are tested in
+`tests/test_output_folder.py` ({ref}`the output folder <output-folder>`).
+"""
+
+
+def _cell(text) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _what(text, args) -> str:
+    """The scene lines a row changes (against the valid scene) and its options."""
+    if text is None:
+        return "`run " + " ".join(args) + "`"
+    base = set(scene().splitlines())
+    changed = [ln for ln in text.splitlines() if ln and ln not in base]
+    parts = [f"`{ln}`" for ln in changed[:4]] + (["..."] if len(changed) > 4 else [])
+    opts = " ".join(a for a in args if a != "NO-OUT")
+    return " ".join(parts + ([f"`{opts}`"] if opts else [])) or "(see the test)"
+
+
+def table_markdown() -> str:
+    """The docs page: one table of the command line's rows, one of the library's."""
+    lines = [DOC_HEAD, "## Command line (exit status 2)", "",
+             "| case | given | the one line contains |", "|---|---|---|"]
+    for case, text, args, expected in CLI:
+        parts = "; ".join(f"`{_cell(e)}`" for e in expected)
+        lines.append(f"| {case} | {_cell(_what(text, args))} | {parts} |")
+    lines += ["", "## Library calls and checkpoints (`ValueError`)", "",
+              "| case | the message contains |", "|---|---|"]
+    for row in LIB:
+        case, expected = (row.id, row.values[2]) if hasattr(row, "values") else (row[0], row[2])
+        parts = "; ".join(f"`{_cell(e)}`" for e in expected)
+        lines.append(f"| {case} | {parts} |")
+    return "\n".join(lines) + "\n"
+
+
+def test_docs_table_is_generated_from_these_rows():
+    assert DOC_PAGE.read_text() == table_markdown(), \
+        "docs/bad_input.md is out of date: run python scripts/bad_input_table.py"

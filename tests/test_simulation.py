@@ -14,7 +14,7 @@ SCENES = bundled("single_particle").parent  # the bundled scenes (skfem_granular
 
 
 def _short(scene, t_end=1e-4, **kw):
-    return replace(scene, time=TimeSpec(t_end=t_end, dt=scene.time.dt), **kw)
+    return replace(scene, time=TimeSpec(t_end=t_end, dt=scene.time.dt), output_dir=None, **kw)
 
 
 @pytest.fixture(scope="module")

@@ -6,6 +6,12 @@ from dataclasses import dataclass
 
 from .._validate import positive
 
+#: Largest fluid density (kg/m^3): beyond it the mass matrix swamps the viscous and
+#: pressure blocks and the saddle-point factorisation fails (1e300 was "exactly singular").
+MAX_DENSITY = 1e5
+#: Viscosities (Pa s) accepted: from below a gas's to above bitumen's.
+VISCOSITY_RANGE = (1e-9, 1e9)
+
 
 @dataclass(frozen=True)
 class Fluid:
@@ -14,9 +20,11 @@ class Fluid:
     Parameters
     ----------
     density : float
-        Mass density ``rho_f`` in kg/m^3 (per unit depth in 2D), > 0.
+        Mass density ``rho_f`` in kg/m^3 (per unit depth in 2D), in
+        ``(0, 1e5]`` (:data:`MAX_DENSITY`, beyond every liquid's).
     viscosity : float
-        Dynamic viscosity ``eta`` in Pa s, > 0.
+        Dynamic viscosity ``eta`` in Pa s, in ``[1e-9, 1e9]``
+        (:data:`VISCOSITY_RANGE`: the linear systems stay solvable in float64).
 
     Examples
     --------
@@ -29,8 +37,17 @@ class Fluid:
     viscosity: float = 1e-3
 
     def __post_init__(self):
-        object.__setattr__(self, "density", positive("Fluid.density", self.density))
-        object.__setattr__(self, "viscosity", positive("Fluid.viscosity", self.viscosity))
+        rho = positive("Fluid.density", self.density)
+        if rho > MAX_DENSITY:
+            raise ValueError(f"Fluid.density = {self.density!r}: must be a finite number > 0 "
+                             f"and <= {MAX_DENSITY:g} kg/m^3")
+        object.__setattr__(self, "density", rho)
+        lo, hi = VISCOSITY_RANGE
+        eta = positive("Fluid.viscosity", self.viscosity)
+        if not lo <= eta <= hi:
+            raise ValueError(f"Fluid.viscosity = {self.viscosity!r}: must be in [{lo:g}, "
+                             f"{hi:g}] Pa s")
+        object.__setattr__(self, "viscosity", eta)
 
     @property
     def kinematic_viscosity(self) -> float:

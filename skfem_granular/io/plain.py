@@ -5,7 +5,7 @@ tuples, dicts with string keys, numpy arrays and numpy scalars, and objects
 of an *allowlisted* set of types (a :class:`Registry`: dataclasses by their
 qualified names, and a few other types through a :class:`Custom` codec).
 :func:`encode` turns such a tree into a JSON-able header and a dict of arrays;
-:func:`write` stores both in one ``.npz`` file (a zip: ``header.json`` and one
+:func:`write` (:mod:`.npz`) stores both in one ``.npz`` file (a zip: ``header.json`` and one
 ``.npy`` member per array, written atomically); :func:`read` and
 :func:`decode` reverse it and refuse anything that does not fit:
 
@@ -33,25 +33,20 @@ and ``str``; JSON lists for lists; and objects with exactly one tag key:
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import re
-import zipfile
 from collections.abc import Callable, Iterable
-from pathlib import Path
 
 import numpy as np
 
-from .files import atomic_write
+from .npz import HEADER_MEMBER, MEMORY_DTYPES, STORED_DTYPES, read, write
 
-#: dtypes an array may have in the file
-STORED_DTYPES = ("float64", "int64", "bool")
-#: dtypes an array may have in memory (int32 is stored as int64 and restored)
-MEMORY_DTYPES = {"float64": "float64", "int64": "int64", "bool": "bool", "int32": "int64"}
+__all__ = ["HEADER_MEMBER", "MEMORY_DTYPES", "STORED_DTYPES", "Custom", "Registry", "decode",
+           "encode", "qualified_name", "read", "write"]
+
 #: numpy scalar types a value may be
 SCALAR_TYPES = {"float64": np.float64, "int64": np.int64, "int32": np.int32, "bool": np.bool_}
 
-HEADER_MEMBER = "header.json"
 _TAGS = {
     "$float": {"$float"},
     "$tuple": {"$tuple"},
@@ -396,78 +391,3 @@ def decode(node, arrays: dict, registry: Registry, *, where: str = "file",
     if unused:
         r.fail(unused[0], "array in the file that the header does not name")
     return value
-
-
-# ---------------------------------------------------------------------- files
-def write(path, header: dict, arrays: dict[str, np.ndarray], *, fsync: bool = False) -> Path:
-    """Write ``header`` (JSON) and ``arrays`` (``.npy`` members) as one zip, atomically."""
-    text = json.dumps(header, allow_nan=False, separators=(",", ":")).encode()
-    for key, a in arrays.items():
-        if a.dtype.name not in STORED_DTYPES:
-            raise TypeError(f"{key}: array of dtype {a.dtype.name} cannot be stored")
-
-    def save(tmp):
-        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
-            zf.writestr(HEADER_MEMBER, text)
-            for key, a in arrays.items():
-                with zf.open(f"{key}.npy", "w", force_zip64=True) as f:
-                    np.lib.format.write_array(f, np.asanyarray(a), allow_pickle=False)
-
-    return atomic_write(path, save, fsync=fsync)
-
-
-def read(path, *, where: str | None = None) -> tuple[dict, dict[str, np.ndarray]]:
-    """The header and the arrays of a file :func:`write` wrote (no pickle, ever).
-
-    Raises
-    ------
-    ValueError
-        One line, for a file that is not such a zip, a header that is not JSON,
-        or a member that is not a plain ``.npy`` array.
-    """
-    path = Path(path)
-    where = where or f"{str(path)!r}"
-    try:
-        npz = np.load(path, allow_pickle=False)
-    except FileNotFoundError:
-        raise ValueError(f"{where}: not found") from None
-    except Exception as exc:  # not a zip / not an npz
-        raise ValueError(f"{where}: not a readable file of this format "
-                         f"({type(exc).__name__}: {' '.join(str(exc).split())})") from None
-    if not isinstance(npz, np.lib.npyio.NpzFile):
-        raise ValueError(f"{where}: not a zip of arrays and a header")
-    with npz:
-        names = list(npz.zip.namelist())
-        if HEADER_MEMBER not in names:
-            raise ValueError(f"{where}: no {HEADER_MEMBER} in the file")
-        try:
-            raw = npz.zip.read(HEADER_MEMBER)
-            header = json.loads(raw.decode("utf-8"), parse_constant=_refuse_constant)
-        except (ValueError, UnicodeDecodeError) as exc:
-            raise ValueError(f"{where}: {HEADER_MEMBER} is not valid JSON "
-                             f"({' '.join(str(exc).split())})") from None
-        arrays = {}
-        for member in names:
-            if member == HEADER_MEMBER:
-                continue
-            if not member.endswith(".npy"):
-                raise ValueError(f"{where}: {member}: unexpected member (only {HEADER_MEMBER} "
-                                 "and .npy arrays)")
-            key = member.removesuffix(".npy")
-            try:
-                a = npz[key]
-            except Exception as exc:  # object arrays refused (no pickle), corrupt members
-                raise ValueError(f"{where}: {key}: not a plain array "
-                                 f"({' '.join(str(exc).split())})") from None
-            if not isinstance(a, np.ndarray) or a.dtype.name not in STORED_DTYPES:
-                what = a.dtype.name if isinstance(a, np.ndarray) else type(a).__name__
-                raise ValueError(f"{where}: {key}: array of dtype {what}: must be one of "
-                                 f"{', '.join(STORED_DTYPES)}")
-            arrays[key] = a
-    if not isinstance(header, dict):
-        raise ValueError(f"{where}: {HEADER_MEMBER} must hold a JSON object")
-    return header, arrays
-
-
-def _refuse_constant(name):
-    raise ValueError(f"{name} is not valid JSON (non-finite numbers are tagged)")

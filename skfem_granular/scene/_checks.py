@@ -6,6 +6,12 @@ import math
 
 import numpy as np
 
+#: Largest length or coordinate of a scene (m): beyond, areas and inertias of the
+#: polygons overflow long before a mesh could resolve anything.
+MAX_LENGTH = 1e3
+#: Largest initial angle of a particle (rad), either sign.
+MAX_ANGLE = 1e3
+
 
 def num(section, name, value, *, lo=None, hi=None, lo_open=True, allow_none=False):
     """A finite number in the range ``(lo, hi]`` (``[lo, hi]`` with ``lo_open=False``)."""
@@ -34,14 +40,17 @@ def num(section, name, value, *, lo=None, hi=None, lo_open=True, allow_none=Fals
     return x
 
 
-def vec(section, name, value, n=2):
-    """``n`` finite numbers, as a tuple of floats."""
+def vec(section, name, value, n=2, bound=None):
+    """``n`` finite numbers (within ``+-bound`` if given), as a tuple of floats."""
+    within = "" if bound is None else f" within +-{bound:g}"
+    msg = f"{section}.{name} = {value!r}: must be {n} finite numbers{within}"
     try:
         x = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        raise ValueError(f"{section}.{name} = {value!r}: must be {n} finite numbers") from None
-    if x.size != n or not np.all(np.isfinite(x)):
-        raise ValueError(f"{section}.{name} = {value!r}: must be {n} finite numbers")
+        raise ValueError(msg) from None
+    if x.size != n or not np.all(np.isfinite(x)) or (
+            bound is not None and np.any(np.abs(x) > bound)):
+        raise ValueError(msg)
     return tuple(float(v) for v in x)
 
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..dem import ContactLaw, Polygon, PrescribedMotion
 from ..fluid.properties import Fluid
-from ._checks import check_keys, num, vec
+from ._checks import MAX_ANGLE, MAX_LENGTH, check_keys, num, vec
 from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
 
 SECTIONS = {"domain", "fluid", "particles", "grid", "contacts", "mesh", "time", "effects",
@@ -18,6 +18,9 @@ GRID_KEYS = {"nx", "ny", "sides", "radius", "spacing", "origin", "density", "cor
              "jitter", "seed"}
 #: largest ``sides`` of a regular polygon (the paper's outlines have 24)
 MAX_SIDES = 1000
+#: most particles in a scene (``[[particles]]`` and ``[grid]`` together), checked before
+#: any of them is built (the bundled scenes have at most 210)
+MAX_PARTICLES = 10_000
 
 
 def _table(name: str, value) -> dict:
@@ -56,9 +59,9 @@ def _polygon(where: str, d: dict) -> Polygon:
     if "sides" not in d or "radius" not in d or "center" not in d:
         raise ValueError(f"{where}: give 'vertices', or 'sides', 'radius' and 'center'")
     sides = _int(where, "sides", d["sides"], 3, MAX_SIDES)
-    r = num(where, "radius", d["radius"], lo=0)
-    c = vec(where, "center", d["center"])
-    ang = num(where, "angle", d.get("angle", 0.0))
+    r = num(where, "radius", d["radius"], lo=0, hi=MAX_LENGTH)
+    c = vec(where, "center", d["center"], bound=MAX_LENGTH)
+    ang = num(where, "angle", d.get("angle", 0.0), lo=-MAX_ANGLE, hi=MAX_ANGLE, lo_open=False)
     try:
         return Polygon.regular(sides, r, center=c, angle=ang)
     except ValueError as exc:  # e.g. a radius below the round-off of the centre coordinates
@@ -120,9 +123,9 @@ def grid_particles(d: dict) -> list[ParticleSpec]:
         _int("grid", key, d.get(key), 1, 100)
     sides = _int("grid", "sides", d.get("sides", 6), 3, MAX_SIDES)
     seed = _int("grid", "seed", d.get("seed", 0), 0)
-    r = num("grid", "radius", d.get("radius"), lo=0)
-    s = num("grid", "spacing", d.get("spacing", 2.2 * r), lo=2 * r)
-    ox, oy = vec("grid", "origin", d.get("origin"))
+    r = num("grid", "radius", d.get("radius"), lo=0, hi=MAX_LENGTH)
+    s = num("grid", "spacing", d.get("spacing", 2.2 * r), lo=2 * r, hi=MAX_LENGTH)
+    ox, oy = vec("grid", "origin", d.get("origin"), bound=MAX_LENGTH)
     rho = num("grid", "density", d.get("density", 2650.0), lo=0)
     core = num("grid", "core_ratio", d.get("core_ratio", 0.8), lo=0, hi=1)
     jitter = num("grid", "jitter", d.get("jitter", 0.0), lo=0, lo_open=False, hi=np.pi)
@@ -135,6 +138,18 @@ def grid_particles(d: dict) -> list[ParticleSpec]:
             out.append(ParticleSpec(Polygon.regular(sides, r, center=c, angle=ang), rho,
                                     core_ratio=core))
     return out
+
+
+def _check_count(parts: list, grid) -> None:
+    """Refuse more than :data:`MAX_PARTICLES` particles before building any."""
+    n = len(parts)
+    if isinstance(grid, dict):
+        nx, ny = grid.get("nx"), grid.get("ny")
+        if all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (nx, ny)):
+            n += nx * ny
+    if n > MAX_PARTICLES:
+        raise ValueError(f"particles: {n} in the scene ([[particles]] and [grid]); at most "
+                         f"{MAX_PARTICLES}")
 
 
 def scene_kwargs(data: dict) -> dict:
@@ -158,9 +173,10 @@ def scene_kwargs(data: dict) -> dict:
     if not isinstance(dom, dict) or "box" not in dom:
         raise ValueError("domain.box: missing; give [x0, y0, x1, y1] in metres")
     check_keys("domain", dom, {"box", "wall_thickness"})
-    kw["domain"] = vec("domain", "box", dom["box"], 4)
+    kw["domain"] = vec("domain", "box", dom["box"], 4, bound=MAX_LENGTH)
     if "wall_thickness" in dom:
-        kw["wall_thickness"] = num("domain", "wall_thickness", dom["wall_thickness"], lo=0)
+        kw["wall_thickness"] = num("domain", "wall_thickness", dom["wall_thickness"], lo=0,
+                                   hi=MAX_LENGTH)
     fl = data.get("fluid")
     if fl is None:
         kw["fluid"] = None
@@ -170,6 +186,7 @@ def scene_kwargs(data: dict) -> dict:
             kw["fluid"] = Fluid(**fl)
         except ValueError as exc:
             raise ValueError(str(exc).replace("Fluid.", "fluid.")) from None
+    _check_count(parts, data.get("grid"))
     parts = [_particle(f"particles[{i}]", p) for i, p in enumerate(parts)]
     if "grid" in data:
         parts += grid_particles(data["grid"])

@@ -13,8 +13,12 @@ from ..dem import ContactLaw, Polygon, PrescribedMotion, stable_time_step
 from ..fluid.properties import Fluid
 from ._checks import num, vec
 from .catalog import bundled
-from .parse import scene_kwargs
+from .parse import MAX_PARTICLES, scene_kwargs
 from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
+
+#: Largest scene file read (about 40 times the largest bundled scene's vertices per particle,
+#: for :data:`~skfem_granular.scene.parse.MAX_PARTICLES` particles).
+MAX_SCENE_BYTES = 20_000_000
 
 
 @dataclass(frozen=True)
@@ -196,6 +200,11 @@ class Scene:
         """Read a scene from a TOML file (layout: :mod:`skfem_granular.scene`)."""
         path = Path(path)
         try:
+            size = path.stat().st_size
+            if size > MAX_SCENE_BYTES:
+                raise ValueError(f"scene file {str(path)!r}: {size / 1e6:.3g} MB; at most "
+                                 f"{MAX_SCENE_BYTES / 1e6:.3g} MB (a scene of "
+                                 f"{MAX_PARTICLES} particles with their vertices fits)")
             data = tomllib.loads(path.read_text())
         except FileNotFoundError:
             raise ValueError(f"scene file {str(path)!r}: not found") from None

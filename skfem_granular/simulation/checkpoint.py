@@ -89,6 +89,13 @@ def _mesh(d):
         raise ValueError("t: must be a (3, T) integer array, T >= 1")
     if t.min() < 0 or t.max() >= p.shape[1]:
         raise ValueError(f"t: vertex indices must be in [0, {p.shape[1]})")
+    a, b, c = p[:, t[0]], p[:, t[1]], p[:, t[2]]
+    area = 0.5 * np.abs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+    scale = float(np.ptp(p, axis=1).max()) ** 2
+    bad = np.flatnonzero(~(area > 1e-14 * scale))
+    if bad.size:
+        raise ValueError(f"t: triangle {bad[0]} has no area (its vertices coincide or lie on "
+                         f"a line; {bad.size} such triangles): not a mesh")
     mesh = skfem.MeshTri(p, t.astype(np.int32), sort_t=False)
     b = _index_dict("boundaries", d["boundaries"], mesh.facets.shape[1])
     s = _index_dict("subdomains", d["subdomains"], t.shape[1])
@@ -230,8 +237,7 @@ def load(directory) -> dict:
                              "(a checkpoint of an earlier version; loading it could run code "
                              "from the file): run again with this version to get a "
                              "checkpoint.npz")
-        raise ValueError(f"resume: no {FILENAME} in {str(directory)!r} (run with "
-                         "output.checkpoint_every > 0 first)")
+        raise ValueError(f"resume: no {FILENAME} in {str(directory)!r} ({_why_none(d)})")
     where = f"checkpoint {str(path)!r}"
     header, arrays = plain.read(path, where=where)
     extra = sorted(set(header) - HEADER_KEYS)
@@ -263,6 +269,20 @@ def load(directory) -> dict:
     data["history"] = _history_rows(data["history"], where, K)
     _check(data, where, K)
     return data
+
+
+def _why_none(d: Path) -> str:
+    """Why a folder has no checkpoint, for the one line that says so."""
+    from ..io import partial_files
+    from .folder import run_files
+
+    if any(p.name.startswith(".partial-checkpoint") for p in partial_files(d)):
+        return ("the run was killed while writing its first checkpoint; start it again "
+                "with --overwrite")
+    if run_files(d):
+        return ("the run there wrote none: checkpoints come every output.checkpoint_every "
+                "steps and when SIGINT/SIGTERM stop a run; start it again with --overwrite")
+    return "no run's output there: run with output.checkpoint_every > 0 first"
 
 
 def _fail(where, path, problem):

@@ -8,28 +8,32 @@ after every accepted step it appends the history row, writes the VTU frames
 every ``vtu_every`` steps and a checkpoint every ``checkpoint_every`` steps.
 ``history.csv`` grows as the run goes: rows are appended and synced to the
 disk with every frame, every checkpoint, at least every
-:data:`FLUSH_SECONDS` of wall time and when the loop ends, so a run killed
-even with SIGKILL leaves a readable history up to its last flush. When the
-loop ends, however it ends (completed, failed, broken off, or stopped by
-SIGINT/SIGTERM), the history is complete and ``summary.json`` is written with
-the run's ``status``. :meth:`Simulation.run` drives that generator to the end.
+:data:`~skfem_granular.simulation.recorder.FLUSH_SECONDS` of wall time and
+when the loop ends, so a run killed even with SIGKILL leaves a readable
+history up to its last flush. When the loop ends, however it ends
+(completed, failed, broken off, or stopped by SIGINT/SIGTERM), the history
+is complete and ``summary.json`` is written with the run's ``status``.
+:meth:`Simulation.run` drives that generator to the end.
 
 SIGINT and SIGTERM (in the main thread) stop a run at the end of the current
 step: the step is recorded, a checkpoint is written (so the run can be
 resumed, bit for bit), the history and the summary are written, and the
 generator ends as if the run had reached its end (``summary["status"] ==
-"stopped"``, ``summary["stopped_by"] == "SIGTERM"``). A second signal of the
-same kind acts as it did before the run (Ctrl-C twice interrupts at once).
-The previous handlers are restored when the loop ends.
+"stopped"``, ``summary["stopped_by"] == "SIGTERM"``). A second signal stops
+the run at once (:mod:`~skfem_granular.simulation.signals`): the history of
+the accepted steps and the summary are written (``summary["stopped_at_once"]``),
+the last checkpoint stays. The previous handlers are restored when the loop ends.
+
+The output folder belongs to the run (:mod:`~skfem_granular.simulation.folder`):
+a new run refuses a folder that holds another run's files unless it was made
+with ``overwrite=True`` (the old files are removed when the run starts);
+:meth:`Simulation.resume` continues the checkpoint's run in its folder; a lock
+file refuses a second live run into the same folder.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import signal
-import threading
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field, replace
@@ -41,17 +45,15 @@ from threadpoolctl import threadpool_limits
 from ..coupled.build import build_mesh
 from ..coupled.stepper import CoupledStepper, SimulationError
 from ..dem import DEMSystem
-from ..dem.output import write_outlines_vtu
-from ..io import CSVLog, History, PVDSeries, atomic_write, check_writable, remove_partial_files
+from ..io import History, check_writable
 from ..scene import Scene
+from .budget import Budget
 from .dry import DryStepper
 from .effects import contacts_needed, scene_warnings
-
-#: The history file is synced at least this often (wall seconds) besides frames and checkpoints.
-FLUSH_SECONDS = 10.0
-
-#: The signals that stop a run at the end of its current step.
-STOP_SIGNALS = ("SIGINT", "SIGTERM")
+from .folder import OutputFolder
+from .recorder import RunOutput
+from .report import summarize
+from .signals import StopNow, StopSignals
 
 
 @dataclass
@@ -89,6 +91,15 @@ class Simulation:
         must have the boundaries ``"wall"`` and ``"particle0"``, ... around
         the particle cores (as :mod:`meshing` makes them). A bare ``MeshTri``
         has no recipe: a run that needs a remesh then stops with an error.
+    overwrite : bool, optional
+        Replace another run's output in ``output_dir`` (its files are removed
+        when the run starts). Without it, a folder holding another run's files
+        is refused with a :class:`~skfem_granular.simulation.folder.FolderInUseError`
+        (a ``ValueError``); continue such a run with :meth:`resume`.
+    budget : Budget, optional
+        Limits on steps, mesh triangles and memory, checked against estimates before
+        the mesh is built (:mod:`~skfem_granular.simulation.budget`; default
+        ``Budget()``); a run beyond them raises a ``BudgetError`` (a ``ValueError``).
 
     Examples
     --------
@@ -97,15 +108,21 @@ class Simulation:
     ...     print(t, step.force[1, 0], sim.dem.velocities[1, 0])
     """
 
-    def __init__(self, scene: Scene, output_dir=None, *, mesh=None):
+    def __init__(self, scene: Scene, output_dir=None, *, mesh=None, overwrite: bool = False,
+                 budget: Budget | None = None):
         if not isinstance(scene, Scene):
             scene = Scene.from_toml(scene)
         self.scene = scene
+        budget = Budget() if budget is None else budget
+        budget.check_steps(scene)
         self.timings = defaultdict(float)
         out = output_dir if output_dir is not None else scene.output_dir
         self.output_dir = None if out is None else Path(out)
+        self.folder = None
         if self.output_dir is not None:
             check_writable(self.output_dir / "summary.json")
+            self.folder = OutputFolder(self.output_dir, "overwrite" if overwrite else "new")
+            self.folder.check()  # before any work: another run's output, a live lock
         eff = scene.effects
         g = np.asarray(scene.gravity) if eff.gravity else np.zeros(2)
         self.dem = DEMSystem.in_box(
@@ -123,6 +140,7 @@ class Simulation:
         self.failure = None
         self.status = "not started"
         self.stopped_by = None
+        self.stopped_at_once = False
         self.history = History(self.dem.n)
         self.steps_done = 0
         self.result: SimulationResult | None = None
@@ -131,14 +149,18 @@ class Simulation:
             self.stepper = DryStepper(scene, self.dem, self.timings)
         else:
             t0 = time.perf_counter()
-            mesh = build_mesh(scene, self.dem.core_outlines()) if mesh is None else mesh
+            if mesh is None:
+                cores = self.dem.core_outlines()
+                budget.check_mesh(scene, cores)
+                mesh = build_mesh(scene, cores)
             self.timings["meshing"] += time.perf_counter() - t0
             self.stepper = CoupledStepper(scene, self.dem, mesh,
                                           contacts_active=self.contacts_active,
                                           timings=self.timings)
 
     @classmethod
-    def resume(cls, directory, t_end: float | None = None) -> Simulation:
+    def resume(cls, directory, t_end: float | None = None, *,
+               budget: Budget | None = None) -> Simulation:
         """Continue a run from the checkpoint in ``directory``.
 
         Parameters
@@ -147,6 +169,8 @@ class Simulation:
             Output directory of a run with ``output.checkpoint_every > 0``.
         t_end : float, optional
             New end time (default: the scene's).
+        budget : Budget, optional
+            Limits the continued run is checked against (see :class:`Simulation`).
 
         Returns
         -------
@@ -154,26 +178,36 @@ class Simulation:
             Ready to :meth:`run` from the checkpointed step; output continues
             in ``directory`` (``history.csv`` rewritten to the checkpoint's rows
             when the run starts, ``.partial-*`` left-overs of a killed run removed).
+            ``t_end`` may not be before the checkpoint's time.
 
         Raises
         ------
         ValueError
             One line naming the field, for a missing, foreign, older (pickle: not read) or
-            inconsistent checkpoint (:func:`~skfem_granular.simulation.checkpoint.load`).
+            inconsistent checkpoint (:func:`~skfem_granular.simulation.checkpoint.load`),
+            a ``t_end`` before the checkpoint's time, or a folder a live run holds.
         """
         from . import checkpoint
 
+        folder = OutputFolder(directory, "resume")
+        folder.check()
         data = checkpoint.load(directory)
         scene = data["scene"]
+        t_ck = float(data["history"][-1]["t"]) if data["history"] else 0.0
         if t_end is not None:
+            if not t_end >= t_ck * (1.0 - 1e-12):
+                raise ValueError(f"t_end (--t-end) = {t_end!r}: must be >= {t_ck!r}, the time "
+                                 "of the checkpoint the run continues from (start a new run "
+                                 "with overwrite to end earlier)")
             scene = replace(scene, time=replace(scene.time, t_end=t_end))
         saved = data["stepper"]
-        sim = cls(scene, output_dir=directory, mesh=saved.get("mesh"))
+        sim = cls(replace(scene, output_dir=None), mesh=saved.get("mesh"),  # no folder check
+                  budget=budget)
+        sim.scene, sim.output_dir, sim.folder = scene, Path(directory), folder
         # the entries this version's stepper and DEM hand over, no more and no fewer
         where = f"checkpoint {str(Path(directory) / checkpoint.FILENAME)!r}"
         checkpoint.check_entries(data["dem"], sim.dem.save_state(), "dem", where)
         checkpoint.check_entries(saved, sim.stepper.checkpoint_state(), "stepper", where)
-        remove_partial_files(directory)  # what a killed writer left behind
         sim.dem.restore_state(data["dem"])
         if scene.dry:
             sim.stepper.steps_taken = saved["steps_taken"]
@@ -258,72 +292,122 @@ class Simulation:
         Raises
         ------
         SimulationError
-            When a step does not converge; the history and the last good state
-            are written first.
+            When a step does not converge (the history and the last good state are
+            written first) or the output cannot be written (a full disk; the files
+            written before stay intact).
+        FolderInUseError
+            When the first step is asked for and the output folder holds another run's
+            files or a live run's lock (nothing is written).
         """
-        sc = self.scene
         t_start = time.perf_counter()
+        if self.folder is not None:
+            self.folder.acquire()  # refuses another run's output or a live lock: nothing written
+        bar = self._progress_bar(progress)
+        self.status, self.stopped_by, self.stopped_at_once = "running", None, False
+        signals = StopSignals()
+        out = RunOutput(self, signals, self._resumed_frames)
+        try:
+            with signals, threadpool_limits(limits=1, user_api="blas"):
+                try:
+                    out.open()
+                    if self.steps_done == 0:
+                        out.frame(0.0)
+                    for t, step in self.stepper.evolve():
+                        checkpointed = self._after_step(t, step, out)
+                        bar.update(1)
+                        yield t, step
+                        if signals.stopped_by is not None:  # SIGINT/SIGTERM during the step
+                            self.stopped_by = signals.stopped_by
+                            if not checkpointed:
+                                out.checkpoint()
+                            self.status = "stopped"
+                            break
+                    else:
+                        self.status = "completed"
+                except StopNow as exc:  # a second signal: at once, the step not finished
+                    self._stopped_at_once(signals, exc)
+                except GeneratorExit:
+                    if signals.at_once:  # the second signal came in the caller's loop
+                        self._stopped_at_once(signals, StopNow(signals.stopped_by))
+                    else:
+                        self.status = "closed"  # the caller broke off the loop
+                    raise
+                except (SimulationError, FloatingPointError, OSError) as exc:
+                    self._failed(exc, out)
+                except BaseException as exc:  # KeyboardInterrupt, errors
+                    self.status = "failed"
+                    self.failure = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+                    raise
+                finally:
+                    with signals.critical(raise_pending=False):
+                        bar.close()
+                        self._wrap_up(out, t_start)
+        finally:
+            if self.folder is not None:
+                self.folder.release()
+
+    def _progress_bar(self, progress):
+        sc = self.scene
         n_steps = max(1, int(math.ceil(sc.time.t_end / sc.time.dt - 1e-9)))
         n_steps = max(0, n_steps - self.steps_done)
-        series = self._open_series()
         show = n_steps > 50 if progress is None else progress
         if show:  # tqdm.auto picks the notebook widget; plain tqdm when it is hidden
             from tqdm.auto import tqdm
         else:
             from tqdm import tqdm
-        bar = tqdm(total=n_steps, disable=not show, desc=sc.name, unit="step")
-        every = sc.checkpoint_every
-        log = None
-        self.status, self.stopped_by = "running", None
-        caught = self._catch_signals()
+        return tqdm(total=n_steps, disable=not show, desc=sc.name, unit="step")
+
+    def _after_step(self, t, step, out: RunOutput) -> bool:
+        """Record the accepted step: history row, frame, checkpoint, flush; True if checkpointed."""
+        self.steps_done += 1
+        out.record(step)
+        if out.frame_due(self.steps_done, t):
+            out.frame(t)
+            out.flush()
+        every = self.scene.checkpoint_every
+        if every and self.output_dir is not None and self.steps_done % every == 0:
+            out.checkpoint()
+            return True
+        out.flush_due()
+        return False
+
+    def _stopped_at_once(self, signals: StopSignals, exc: StopNow) -> None:
+        self.status, self.stopped_at_once = "stopped", True
+        self.stopped_by = signals.stopped_by or exc.name
+
+    def _failed(self, exc, out: RunOutput):
+        """A step that failed, or output that could not be written: one line, the rest kept."""
+        self.status = "failed"
+        if isinstance(exc, OSError):
+            what = exc.strerror or type(exc).__name__
+            self.failure = (f"writing the output failed: {what}"
+                            + (f": {exc.filename}" if exc.filename else ""))
+            raise SimulationError(f"{self.failure}; the files written before are intact"
+                                  ) from exc
+        self.failure = str(exc)
+        if not self.scene.dry:
+            try:
+                out.frame(self.stepper.state.t)
+            except OSError:
+                pass
+        raise SimulationError(f"{exc}; history and last good state written to "
+                              f"{self.output_dir}") from exc
+
+    def _wrap_up(self, out: RunOutput, t_start):
+        """Timings, summary, the history completed and ``summary.json``: :attr:`result` set."""
+        self.stepper.collect_timings()
+        self.timings["total"] += time.perf_counter() - t_start
+        summary = self.summary(self.history)
         try:
-            log = self._open_log()
-            with threadpool_limits(limits=1, user_api="blas"):
-                if self.steps_done == 0:
-                    self._write_frame(series, 0.0)
-                for t, step in self.stepper.evolve():
-                    self.steps_done += 1
-                    self._record(step)
-                    checkpointed = False
-                    if self._frame_due(self.steps_done, t):
-                        self._write_frame(series, t)
-                        self._flush(log)
-                    if every and self.output_dir is not None and self.steps_done % every == 0:
-                        self._checkpoint(series, log)
-                        checkpointed = True
-                    elif log is not None and time.monotonic() - self._flushed > FLUSH_SECONDS:
-                        self._flush(log)
-                    bar.update(1)
-                    yield t, step
-                    if self.stopped_by is not None:  # SIGINT/SIGTERM during the step
-                        if self.output_dir is not None and not checkpointed:
-                            self._checkpoint(series, log)
-                        self.status = "stopped"
-                        break
-                else:
-                    self.status = "completed"
-        except (SimulationError, FloatingPointError) as exc:
-            self.failure = str(exc)
-            self.status = "failed"
-            if not sc.dry:
-                self._write_frame(series, self.stepper.state.t)
-            raise SimulationError(f"{exc}; history and last good state written to "
-                                  f"{self.output_dir}") from exc
-        except GeneratorExit:
-            self.status = "closed"  # the caller broke off the loop
-            raise
-        except BaseException as exc:  # KeyboardInterrupt (a second Ctrl-C), errors
-            self.status = "failed"
-            self.failure = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
-            raise
-        finally:
-            self._restore_signals(caught)
-            bar.close()
-            self.stepper.collect_timings()
-            self.timings["total"] += time.perf_counter() - t_start
-            summary = self.summary(self.history)
-            self.result = SimulationResult(self.history, summary, self.output_dir,
-                                           self._finish(log, summary))
+            files = out.finish(summary)
+        except OSError as exc:
+            files = []
+            if self.status != "failed":  # nothing else in flight: this is the failure
+                self.status, self.failure = "failed", f"writing the output failed: {exc}"
+                self.result = SimulationResult(self.history, summary, self.output_dir, files)
+                raise SimulationError(f"writing the output failed: {exc.strerror or exc}"
+                                      + (f": {exc.filename}" if exc.filename else "")) from exc
+        self.result = SimulationResult(self.history, summary, self.output_dir, files)
 
     def run(self, progress: bool | None = None) -> SimulationResult:
         """Run to ``scene.time.t_end``; returns a :class:`SimulationResult`.
@@ -333,103 +417,13 @@ class Simulation:
         progress : bool, optional
             Show a tqdm progress bar (default: when the run has > 50 steps).
         """
-        for _ in self.evolve(progress):
-            pass
-        return self.result
-
-    # ------------------------------------------------------------------ output
-    def _open_log(self):
-        """The live ``history.csv``: header and the rows so far (a resumed run's), then appends."""
-        self._flushed = time.monotonic()
-        if self.output_dir is None:
-            return None
-        return CSVLog(self.history, self.output_dir / "history.csv")
-
-    def _flush(self, log):
-        if log is not None:
-            t0 = time.perf_counter()
-            log.flush()
-            self._flushed = time.monotonic()
-            self.timings["output"] += time.perf_counter() - t0
-
-    def _checkpoint(self, series, log):
-        """History synced first, then the checkpoint: the file always has its rows."""
-        from . import checkpoint
-
-        self._flush(log)
-        t0 = time.perf_counter()
-        checkpoint.save(self, self.steps_done, series)
-        self.timings["output"] += time.perf_counter() - t0
-
-    def _catch_signals(self) -> dict:
-        """Stop at the end of the current step on SIGINT/SIGTERM (main thread only)."""
-        if threading.current_thread() is not threading.main_thread():
-            return {}
-        caught = {}
-
-        def stop(signum, frame):
-            name = signal.Signals(signum).name
-            if self.stopped_by is None:
-                self.stopped_by = name
-            prev = caught.get(signum)
-            if prev is not None:  # a second one acts as before the run
-                signal.signal(signum, prev)
-            try:
-                os.write(2, f"\nskfem-granular: {name}: stopping at the end of this step "
-                            f"(again: stop at once)\n".encode())
-            except OSError:
+        steps = self.evolve(progress)
+        try:
+            for _ in steps:
                 pass
-
-        for name in STOP_SIGNALS:
-            sig = getattr(signal, name)
-            prev = signal.getsignal(sig)
-            if prev is None or prev == signal.SIG_IGN:  # not Python's, or ignored: left alone
-                continue
-            caught[sig] = prev
-            signal.signal(sig, stop)
-        self._stop_handler = stop
-        return caught
-
-    def _restore_signals(self, caught: dict) -> None:
-        for sig, prev in caught.items():
-            if signal.getsignal(sig) is self._stop_handler:
-                signal.signal(sig, prev)
-
-    def _open_series(self):
-        if self.output_dir is None:
-            return None
-        d = self.output_dir
-        series = {"flow": None if self.scene.dry else PVDSeries(d / "flow.pvd"),
-                  "particles": PVDSeries(d / "particles.pvd")}
-        for name, frames in self._resumed_frames.items():
-            if series.get(name) is not None:
-                series[name].frames = list(frames)
-        return series
-
-    def _write_frame(self, series, t):
-        if series is None:
-            return
-        t0 = time.perf_counter()
-        dem = self.dem
-        series["particles"].write(t, lambda f: write_outlines_vtu(f, dem))
-        if series["flow"] is not None:
-            series["flow"].write(t, self.stepper.flow().save)
-        self.timings["output"] += time.perf_counter() - t0
-
-    def _frame_due(self, k, t):
-        every = self.scene.vtu_every
-        last = t >= self.scene.time.t_end - 1e-9 * self.scene.time.dt
-        return last or (every > 0 and k % every == 0)
-
-    def _record(self, step):
-        dem = self.dem
-        acc = step.acceleration
-        self.history.append(
-            step.t, step.dt, step.iterations, fluid_energy=step.fluid_energy,
-            error=step.error, x=dem.positions[0], y=dem.positions[1], angle=dem.angles,
-            vx=dem.velocities[0], vy=dem.velocities[1], omega=dem.angular_velocities,
-            ax=acc[0], ay=acc[1], Fx=step.force[0], Fy=step.force[1], torque=step.torque,
-            contacts=dem.contact_count())
+        except StopNow:  # a second signal between two steps: the generator writes, then ends
+            steps.close()
+        return self.result
 
     def fluid_energy(self) -> float:
         """Kinetic energy ``rho u.M u / 2`` of the fluid now (J per unit depth)."""
@@ -440,77 +434,8 @@ class Simulation:
         """Run summary: effects, mesh, final state, wall times, warnings.
 
         ``status`` is ``"completed"``, ``"stopped"`` (by the signal named in
-        ``stopped_by``), ``"failed"`` (the reason in ``failed``), ``"closed"`` (the
-        caller broke off :meth:`evolve`'s loop) or ``"running"``.
+        ``stopped_by``; ``stopped_at_once`` when a second one ended the step),
+        ``"failed"`` (the reason in ``failed``), ``"closed"`` (the caller broke off
+        :meth:`evolve`'s loop) or ``"running"``.
         """
-        sc = self.scene
-        eff = sc.effects
-        active = {
-            "fluid": not sc.dry,
-            "gravity": eff.gravity,
-            "convection": (not sc.dry) and eff.convection,
-            "contacts": self.contacts_active,
-            "rotation": eff.rotation,
-            "remeshing": (not sc.dry) and eff.remeshing,
-        }
-        ratios = self.remesh_energy_ratios
-        out = {
-            "scene": sc.name,
-            "effects": active,
-            "coupling": None if sc.dry else sc.coupling,
-            "mesh_motion": None if sc.dry else ("ale" if sc.moving_mesh else "fixed"),
-            "particles": self.dem.n,
-            "imposed_motion": [int(k) for k in np.flatnonzero(self.dem.imposed)],
-            "steps": len(hist),
-            "t_end": float(hist.t[-1]) if len(hist) else 0.0,
-            "dt": sc.time.dt,
-            "remeshes": self.remeshes,
-            "remesh_reasons": None if sc.dry else dict(self.stepper.remesh_reasons),
-            **({} if sc.dry else self.stepper.factor_counts),
-            "retries": self.retries,
-            "rejections": self.rejections,
-            "euler_steps_at_contacts": self.euler_steps,
-            "adaptive": sc.time.adaptive,
-            "dt_range": ([float(hist.dt.min()), float(hist.dt.max())] if len(hist) else None),
-            "remesh_energy_ratio_max": max(ratios, default=None),
-            "status": self.status,
-            "stopped_by": self.stopped_by,
-            "failed": self.failure,
-            "warnings": list(self.warnings),
-            "wall_time": {k: round(v, 6) for k, v in self.timings.items()},
-        }
-        if not sc.dry:
-            import meshing
-
-            st = meshing.mesh_stats(self.mesh)
-            out["mesh"] = {
-                "kind": getattr(getattr(self.stepper.meshed, "recipe", None), "kind",
-                                sc.mesh.kind),  # what "auto" chose
-                "vertices": st.n_vertices,
-                "p2_nodes": st.n_p2_nodes,
-                "triangles": st.n_triangles,
-                "dofs": int(self.space.N),
-                "min_angle": float(st.min_angle),
-            }
-        if len(hist):
-            out["final"] = {
-                "x": hist.x[-1].tolist(),
-                "y": hist.y[-1].tolist(),
-                "vx": hist.vx[-1].tolist(),
-                "vy": hist.vy[-1].tolist(),
-                "omega": hist.omega[-1].tolist(),
-            }
-        return out
-
-    def _finish(self, log, summary):
-        """Complete ``history.csv`` (the live file, synced) and write ``summary.json``."""
-        if self.output_dir is None:
-            return []
-        d = self.output_dir
-        if log is not None:
-            log.close()
-        else:  # the log could not be opened: the whole table at once
-            self.history.to_csv(d / "history.csv")
-        text = json.dumps(summary, indent=2)
-        atomic_write(d / "summary.json", lambda tmp: Path(tmp).write_text(text))
-        return [d / "history.csv", d / "summary.json"]
+        return summarize(self, hist)

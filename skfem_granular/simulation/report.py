@@ -1,0 +1,76 @@
+"""The summary of a run (``summary.json``): effects, mesh, steps, final state, wall times."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..io import History
+
+
+def summarize(sim, hist: History) -> dict:
+    """The summary of :class:`~skfem_granular.simulation.Simulation` ``sim`` with history ``hist``.
+
+    ``status`` is ``"completed"``, ``"stopped"`` (by the signal named in
+    ``stopped_by``; ``stopped_at_once`` when a second one ended the step),
+    ``"failed"`` (the reason in ``failed``), ``"closed"`` (the caller broke off
+    the loop) or ``"running"``.
+    """
+    sc = sim.scene
+    eff = sc.effects
+    active = {
+        "fluid": not sc.dry,
+        "gravity": eff.gravity,
+        "convection": (not sc.dry) and eff.convection,
+        "contacts": sim.contacts_active,
+        "rotation": eff.rotation,
+        "remeshing": (not sc.dry) and eff.remeshing,
+    }
+    ratios = sim.remesh_energy_ratios
+    out = {
+        "scene": sc.name,
+        "effects": active,
+        "coupling": None if sc.dry else sc.coupling,
+        "mesh_motion": None if sc.dry else ("ale" if sc.moving_mesh else "fixed"),
+        "particles": sim.dem.n,
+        "imposed_motion": [int(k) for k in np.flatnonzero(sim.dem.imposed)],
+        "steps": len(hist),
+        "t_end": float(hist.t[-1]) if len(hist) else 0.0,
+        "dt": sc.time.dt,
+        "remeshes": sim.remeshes,
+        "remesh_reasons": None if sc.dry else dict(sim.stepper.remesh_reasons),
+        **({} if sc.dry else sim.stepper.factor_counts),
+        "retries": sim.retries,
+        "rejections": sim.rejections,
+        "euler_steps_at_contacts": sim.euler_steps,
+        "adaptive": sc.time.adaptive,
+        "dt_range": ([float(hist.dt.min()), float(hist.dt.max())] if len(hist) else None),
+        "remesh_energy_ratio_max": max(ratios, default=None),
+        "status": sim.status,
+        "stopped_by": sim.stopped_by,
+        "stopped_at_once": sim.stopped_at_once,
+        "failed": sim.failure,
+        "warnings": list(sim.warnings),
+        "wall_time": {k: round(v, 6) for k, v in sim.timings.items()},
+    }
+    if not sc.dry:
+        import meshing
+
+        st = meshing.mesh_stats(sim.mesh)
+        out["mesh"] = {
+            "kind": getattr(getattr(sim.stepper.meshed, "recipe", None), "kind",
+                            sc.mesh.kind),  # what "auto" chose
+            "vertices": st.n_vertices,
+            "p2_nodes": st.n_p2_nodes,
+            "triangles": st.n_triangles,
+            "dofs": int(sim.space.N),
+            "min_angle": float(st.min_angle),
+        }
+    if len(hist):
+        out["final"] = {
+            "x": hist.x[-1].tolist(),
+            "y": hist.y[-1].tolist(),
+            "vx": hist.vx[-1].tolist(),
+            "vy": hist.vy[-1].tolist(),
+            "omega": hist.omega[-1].tolist(),
+        }
+    return out

@@ -1,0 +1,65 @@
+"""Budgets: steps, triangles and memory estimated before any work and checked against limits.
+
+The triangle estimate is checked against the meshes built for every bundled
+fluid scene (within a factor 3; measured 0.96 to 2.15); the refusals themselves
+are rows of the bad-input table (tests/test_bad_input.py). A graded mesh with
+``delta_l = 1e-7`` (measured before: 50 s and 5.9 GB, then a MemoryError) is
+refused from its estimate before the mesher runs, by the simulation's budget and
+by the mesher itself.
+"""
+
+import resource
+import time
+from dataclasses import replace
+
+import pytest
+
+import meshing
+from skfem_granular.coupled.build import build_mesh
+from skfem_granular.dem import DEMSystem, Polygon
+from skfem_granular.scene import MeshSpec, Scene, bundled_scenes
+from skfem_granular.simulation import Budget, BudgetError, Simulation
+from skfem_granular.simulation.budget import Estimate, triangles
+
+
+def _cores(sc):
+    dem = DEMSystem.in_box([p.to_dem() for p in sc.particles], sc.domain, sc.wall_thickness,
+                           law=sc.contact_law, dt=sc.time.dem_dt)
+    return dem.core_outlines()
+
+
+@pytest.mark.parametrize("name", [n for n, p in bundled_scenes().items()
+                                  if not Scene.from_toml(p).dry])
+def test_triangle_estimate_within_a_factor_3_of_the_mesh(name):
+    sc = Scene.bundled(name)
+    cores = _cores(sc)
+    built = build_mesh(sc, cores).mesh.t.shape[1]
+    assert 1 / 3 < triangles(sc, cores) / built < 3
+
+
+def test_unknowns_and_memory_follow_the_triangles():
+    e = Estimate(steps=10, triangles=1000)
+    assert e.unknowns == 4500 and e.memory == 4500 * 9000.0
+
+
+def test_graded_refusal_is_quick_and_small():
+    sc = Scene.bundled("single_particle")
+    sc = replace(sc, mesh=MeshSpec(kind="graded", delta_l=1e-7), output_dir=None)
+    t0 = time.perf_counter()
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    with pytest.raises(BudgetError, match=r"mesh.delta_l = 1e-07: the mesh would have about"):
+        Simulation(sc)
+    with pytest.raises(ValueError, match=r"the graded circles would hold 2.67e\+08 nodes"):
+        meshing.graded_mesh((0, 0, 3e-3, 11e-3),
+                            [Polygon.regular(24, 0.4e-3, center=(1.5e-3, 5.5e-3)).vertices],
+                            delta_l=1e-7)
+    assert time.perf_counter() - t0 < 2.0
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0 < 100_000  # kB
+
+
+def test_a_raised_limit_lets_the_run_go():
+    sc = replace(Scene.bundled("single_particle"), output_dir=None)
+    with pytest.raises(BudgetError, match="more than max_elements = 100"):
+        Simulation(sc, budget=Budget(max_elements=100))
+    sim = Simulation(sc, budget=Budget(max_elements=400))  # the estimate: 398
+    assert sim.mesh.t.shape[1] == 338
