@@ -4,7 +4,7 @@ Usage: ``python benchmarks/packing.py [--n 1000] [--seeds 0 1 2] [--states dense
 [--aspect 0.8] [--shape ngon] [--save-dir DIR] [--tag NAME]``.
 
 Every (state, seed) pours ``n`` grains (12-gon near-disks by default, d_mean = 1 mm,
-d_max / d_min = 1.8, 2650 kg/m^3, E = 3e5 N/m) into a box sized for ``H0 / L0 =
+d_max / d_min = 1.8, 2650 kg/m^3, E = 1e6 N/m) into a box sized for ``H0 / L0 =
 aspect`` and waits until they rest (:func:`skfem_granular.packing.prepare_column`).
 Writes ``benchmarks/results/packing_<tag>.json``: per run the wall and CPU time, the
 simulated settling time, the solid fraction (shadow area in a window 2 d_max from the
@@ -32,7 +32,15 @@ RESULTS = Path(__file__).resolve().parent / "results"
 def run(n, state, seed, aspect, shape, save_dir):
     cpu0, t0 = time.process_time(), time.perf_counter()
     load = os.getloadavg()[0]
-    p = prepare_column(n, aspect, state, shape=shape, seed=seed)
+    last = [0.0]
+
+    def progress(t, vmax):
+        if t - last[0] >= 0.05:
+            last[0] = t
+            print(f"  {state} seed {seed}: t = {t:.3f} s, max speed {vmax:.3g} m/s, "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
+
+    p = prepare_column(n, aspect, state, shape=shape, seed=seed, progress=progress)
     row = {"n": n, "state": state, "seed": seed, "shape": shape,
            "solid_fraction": p.solid_fraction, "L0": p.width, "H0": p.height,
            "aspect": p.aspect, "settle_time_s": p.settle_time,

@@ -8,7 +8,7 @@ a JSON string with the scalar fields of :class:`Packing`.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +49,10 @@ class Packing:
         Where ``solid_fraction`` was measured.
     settle_time, wall_time : float
         Simulated time of the deposition and the wall time it took (s).
+    max_overlap : float
+        Largest overlap area of two grains at rest over the smaller grain's area (the
+        compression of the contact law under the column's weight; a scene starting
+        from the packing allows it, ``Scene.overlap_tolerance``).
     """
 
     outlines: tuple
@@ -64,6 +68,7 @@ class Packing:
     E: float
     window: tuple = (0.0, 0.0, 0.0, 0.0)
     settle_time: float = 0.0
+    max_overlap: float = 0.0
     wall_time: float = field(default=0.0, compare=False)
 
     @property
@@ -113,9 +118,10 @@ def load_packing(path) -> Packing:
         raise ValueError(f"packing file {str(path)!r}: not a packing (.npz with vertices, "
                          f"counts and meta: {exc})") from None
     names = {f.name for f in fields(Packing)} - {"outlines"}
-    if set(meta) != names:
+    required = {f.name for f in fields(Packing) if f.default is MISSING} - {"outlines"}
+    if not required <= set(meta) <= names:
         raise ValueError(f"packing file {str(path)!r}: meta fields {sorted(meta)}: must be "
-                         f"{sorted(names)}")
+                         f"{sorted(required)}, and optionally {sorted(names - required)}")
     outlines = tuple(V[k, : counts[k]].T.copy() for k in range(len(counts)))
     meta["window"] = tuple(meta["window"])
     return Packing(outlines=outlines, **meta)
