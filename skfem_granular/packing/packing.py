@@ -47,6 +47,8 @@ class Packing:
         under this stiffness: collapse runs use the same).
     window : (x0, y0, x1, y1)
         Where ``solid_fraction`` was measured.
+
+    Equality compares the scalar fields (compare outlines with ``numpy.array_equal``).
     settle_time, wall_time : float
         Simulated time of the deposition and the wall time it took (s).
     max_overlap : float
@@ -55,7 +57,7 @@ class Packing:
         from the packing allows it, ``Scene.overlap_tolerance``).
     """
 
-    outlines: tuple
+    outlines: tuple = field(compare=False)
     density: float
     width: float
     height: float
