@@ -10,6 +10,7 @@ densest packing of equal disks (Thue), and above 0.70, below any random packing 
 
 import numpy as np
 import pytest
+from helpers import column_packing
 
 from skfem_granular.dem import Polygon
 from skfem_granular.packing import (
@@ -26,7 +27,7 @@ KW = {"E": 2e5, "margin": 1.0}  # soft contacts: large DEM steps for a fast test
 
 @pytest.fixture(scope="module")
 def pair():
-    return {s: prepare_column(30, 0.8, s, seed=3, **KW) for s in ("dense", "loose")}
+    return {s: column_packing(s) for s in ("dense", "loose")}
 
 
 def test_dense_denser_than_loose(pair):

@@ -6,7 +6,8 @@ normalise with the packing's ``L0``, ``H0`` and ``tau_c = sqrt(H0 / g)``.
 
 - :func:`front_position`: the run-out ``L(t)``: the right end of the grains connected
   to the left wall (gaps wider than ``gap`` cut off grains thrown ahead);
-- :func:`deposit_profile`, :func:`height_at`: the free surface ``h(x)``;
+- :func:`deposit_profile`, :func:`height_at`: the free surface ``h(x)`` (the upper
+  boundary of the grains);
 - :func:`kinetic_energies`: horizontal, vertical and rotational kinetic energy;
 - :func:`front_froude`: ``Fr = (dL/dt) / sqrt(g H0)``;
 - :func:`flowing_solid_fraction`: grain area over hull area of the moving grains.
@@ -69,23 +70,34 @@ def front_position(outlines, x_wall: float = 0.0, gap: float | None = None) -> f
     return float(end)
 
 
-def deposit_profile(outlines, x_edges) -> np.ndarray:
-    """Height of the highest grain point in every bin ``[x_edges[i], x_edges[i+1])``.
+def _top(P: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Upper boundary of the convex outline ``P`` at abscissae ``x`` (``-inf`` off it)."""
+    xa, ya = P
+    xb, yb = np.roll(xa, -1), np.roll(ya, -1)
+    lo, hi = np.minimum(xa, xb), np.maximum(xa, xb)
+    X = x[:, None]
+    on = (X >= lo) & (X <= hi) & (hi > lo)
+    t = np.where(on, (X - xa) / np.where(hi > lo, xb - xa, 1.0), 0.0)
+    y = np.where(on, ya + t * (yb - ya), -np.inf)
+    return y.max(axis=1)
 
-    Bins without grains have height 0 (the floor at y = 0).
-    """
-    V = np.concatenate([np.asarray(P) for P in outlines], axis=1)
-    x_edges = np.asarray(x_edges, dtype=float)
-    k = np.searchsorted(x_edges, V[0], side="right") - 1
-    ok = (k >= 0) & (k < x_edges.size - 1)
-    h = np.zeros(x_edges.size - 1)
-    np.maximum.at(h, k[ok], V[1, ok])
+
+def deposit_profile(outlines, x) -> np.ndarray:
+    """Height of the free surface at the abscissae ``x``: the highest grain boundary above
+    each point (0, the floor, where no grain is above it)."""
+    x = np.asarray(x, dtype=float)
+    h = np.zeros(x.size)
+    for P in outlines:
+        P = np.asarray(P)
+        sel = (x >= P[0].min()) & (x <= P[0].max())
+        if sel.any():
+            h[sel] = np.maximum(h[sel], _top(P, x[sel]))
     return h
 
 
 def height_at(outlines, x: float, width: float) -> float:
-    """Deposit height over ``[x - width / 2, x + width / 2]`` (e.g. at the gate)."""
-    return float(deposit_profile(outlines, [x - width / 2.0, x + width / 2.0])[0])
+    """Highest free-surface point over ``[x - width / 2, x + width / 2]`` (e.g. at the gate)."""
+    return float(deposit_profile(outlines, np.linspace(x - width / 2, x + width / 2, 11)).max())
 
 
 def kinetic_energies(mass, inertia, velocities, omega) -> tuple[float, float, float]:

@@ -68,10 +68,13 @@ def _grid(outlines, width, rng):
     return np.vstack([x, y]), float(y.max() + s)
 
 
-def deposition(dem: DEMSystem, *, t_max: float, rest_speed: float, chunk: float = 5e-3):
-    """Advance ``dem`` in chunks of ``chunk`` s until every grain is at rest.
+def deposition(dem: DEMSystem, *, t_max: float, rest_speed: float, chunk: float = 5e-3,
+               statistic: str = "max"):
+    """Advance ``dem`` in chunks of ``chunk`` s until the grains are at rest.
 
-    Yields ``(t, max_speed)`` after every chunk; stops when ``max_speed < rest_speed``.
+    Yields ``(t, speed)`` after every chunk, ``speed`` the grains' largest speed
+    (``statistic = "max"``) or their root-mean-square speed (``"rms"``: a few
+    rattling grains do not hold the stage up); stops when ``speed < rest_speed``.
 
     Raises
     ------
@@ -80,11 +83,12 @@ def deposition(dem: DEMSystem, *, t_max: float, rest_speed: float, chunk: float 
     """
     while dem.t < t_max:
         dem.advance(chunk)
-        vmax = float(np.hypot(*dem.velocities).max())
+        v = np.hypot(*dem.velocities)
+        vmax = float(v.max() if statistic == "max" else np.sqrt(np.mean(v * v)))
         yield dem.t, vmax
         if vmax < rest_speed:
             return
-    raise RuntimeError(f"deposition: grains still moving at t = {dem.t:.3g} s (max speed "
+    raise RuntimeError(f"deposition: grains still moving at t = {dem.t:.3g} s ({statistic} speed "
                        f"{vmax:.3g} m/s > {rest_speed:.3g} m/s); raise t_max")
 
 
@@ -164,9 +168,10 @@ def prepare_column(n: int, aspect: float, state: str = "dense", *, shape: str = 
     dem = DEMSystem.in_box(grains, (0.0, 0.0, width, top), d_max, law=law,
                            gravity=(0.0, -gravity))
     rest = REST_SPEED * math.sqrt(gravity * d_mean)
-    for stage_mu, speed in ((proto.mu, FREEZE * rest), (proto.settle_mu, rest)):
+    for stage_mu, speed, stat in ((proto.mu, FREEZE * rest, "rms"),
+                                  (proto.settle_mu, rest, "max")):
         dem.law = replace(law, mu=stage_mu)
-        for t, vmax in deposition(dem, t_max=t_max, rest_speed=speed):
+        for t, vmax in deposition(dem, t_max=t_max, rest_speed=speed, statistic=stat):
             if progress is not None:
                 progress(t, vmax)
     V = dem.shadow_outlines()

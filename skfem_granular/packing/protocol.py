@@ -44,5 +44,5 @@ class Protocol:
 #: the named states a packing can be prepared in
 PROTOCOLS = {"dense": Protocol(mu=0.0), "loose": Protocol(mu=1.0, settle_mu=1.0)}
 
-#: the first stage ends when the fastest grain is slower than this many rest speeds
+#: the first stage ends when the rms speed of the grains is below this many rest speeds
 FREEZE = 10.0
