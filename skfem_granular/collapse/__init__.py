@@ -27,9 +27,10 @@ from .measures import (
 )
 from .pressure import excess_pressure, flow_pressure, frame_pressure, line_points, reference_point
 from .series import collapse_series, history_columns, initial_column
-from .setup import FRICTION, column_scene, tank_size, time_scale
+from .setup import FRICTION, column_scene, column_toml, tank_size, time_scale
 
-__all__ = ["DRY_LAWS", "FRICTION", "collapse_series", "column_scene", "deposit_profile",
+__all__ = ["DRY_LAWS", "FRICTION", "collapse_series", "column_scene", "column_toml",
+           "deposit_profile",
            "dry_runout", "excess_pressure", "flow_pressure", "flowing_solid_fraction",
            "frame_pressure", "front_froude", "front_position", "grain_outlines", "height_at",
            "history_columns", "initial_column", "kinetic_energies", "line_points",

@@ -14,7 +14,7 @@ import math
 from ..packing import Packing
 from ..scene import Scene
 
-__all__ = ["FRICTION", "column_scene", "tank_size", "time_scale"]
+__all__ = ["FRICTION", "column_scene", "column_toml", "tank_size", "time_scale"]
 
 #: contact friction of the collapse: tan 26 deg, Kumar, Delenne & Soga's friction angle
 FRICTION = math.tan(math.radians(26.0))
@@ -79,3 +79,24 @@ def column_scene(packing: Packing, *, fluid: bool = True, core_ratio: float = 0.
     if output_dir is None:
         del data["output"]["directory"]
     return Scene.from_dict(data, name=name)
+
+
+def column_toml(packing: Packing, path, *, fluid: bool = True, core_ratio: float = 0.8) -> str:
+    """The TOML text of :func:`column_scene` for the packing saved at ``path``."""
+    sc = column_scene(packing, fluid=fluid, core_ratio=core_ratio)
+    x0, y0, x1, y1 = sc.domain
+    law = sc.contact_law
+    lines = [f"# Collapse of a {packing.state} column of {packing.n} grains (a = "
+             f"{packing.aspect:.3g}, solid fraction {packing.solid_fraction:.4f}), "
+             f"{'in water' if fluid else 'dry'}; gate at x = {packing.width:.6g} m removed at t = 0",
+             "", "[domain]", f"box = [{x0!r}, {y0!r}, {x1!r}, {y1!r}]",
+             f"wall_thickness = {sc.wall_thickness!r}", "", "[column]",
+             f"packing = {str(path)!r}", f"core_ratio = {core_ratio!r}", "", "[contacts]",
+             f"mu = {law.mu!r}", f"gamma = {law.gamma!r}", "", "[time]",
+             f"t_end = {sc.time.t_end!r}", f"dt = {sc.time.dt!r}", "", "[effects]",
+             f"fluid = {'true' if fluid else 'false'}", "gravity = true", "contacts = true",
+             f"remeshing = {'true' if fluid else 'false'}"]
+    if fluid:
+        lines += ["", "[fluid]", "density = 1000.0", "viscosity = 1.0e-3", "", "[mesh]",
+                  f"delta_l = {sc.mesh.delta_l!r}"]
+    return "\n".join(lines) + "\n"

@@ -157,6 +157,11 @@ def prepare_column(n: int, aspect: float, state: str = "dense", *, shape: str = 
     width = column_width(n, aspect, d_mean, size_ratio) if isinstance(aspect, (int, float)) \
         and not isinstance(aspect, bool) and aspect > 0 else 0.0
     _check(n, aspect, state, shape, size_ratio, width, d_max)
+    m = margin * d_max
+    if not (width > 2 * m and aspect * width > 2 * m):
+        raise ValueError(f"packing.margin = {margin!r}: the column ({width:.3g} x "
+                         f"{aspect * width:.3g} m) is too small to measure its solid fraction "
+                         f"{margin:g} d_max from its edges; give more grains or a smaller margin")
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     local = grain_outlines(n, shape, d_mean, size_ratio, rng, sides=sides)
@@ -180,7 +185,6 @@ def prepare_column(n: int, aspect: float, state: str = "dense", *, shape: str = 
                      [max(0.0, -min(P[1].min() for P in V))]])
     outlines = tuple(P + lift for P in V)
     H0 = surface_height(outlines, width, d_max)
-    m = margin * d_max
     window = (m, m, width - m, H0 - m)
     if not (window[2] > window[0] and window[3] > window[1]):
         raise ValueError(f"packing: column {width:.3g} x {H0:.3g} m too small to measure "
