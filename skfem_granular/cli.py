@@ -13,9 +13,10 @@
 - ``skfem-granular render DIR --png PATH | --animation PATH`` draws a run's output.
 - ``skfem-granular study single-particle|faxen`` runs an accuracy-vs-cost study.
 - ``skfem-granular pack N --out FILE.npz [--aspect A] [--state dense|loose] [--shape S]
-  [--seed K] [--size-ratio R] [--d-mean D] [--margin M] [--scene FILE.toml [--dry]]`` prepares a column
-  of N grains with the DEM alone (:func:`skfem_granular.packing.prepare_column`), saves
-  it and prints its solid fraction; ``--scene`` also writes a collapse scene using it.
+  [--seed K] [--size-ratio R] [--d-mean D] [--margin M] [--scene FILE.toml [--dry]]``
+  prepares a column of N grains with the DEM alone
+  (:func:`skfem_granular.packing.prepare_column`), saves it and prints its solid fraction;
+  ``--scene`` also writes a collapse scene using it.
 
 Bad input ends with exit code 2 and one line naming the field and the allowed range.
 """

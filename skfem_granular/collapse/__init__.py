@@ -12,6 +12,7 @@ pressure along horizontal lines (:mod:`.measures`, :mod:`.series`,
 dry run-out laws.
 """
 
+from . import plots
 from .laws import DRY_LAWS, dry_runout
 from .measures import (
     deposit_profile,
@@ -34,5 +35,5 @@ __all__ = ["DRY_LAWS", "FRICTION", "collapse_series", "column_scene", "column_to
            "dry_runout", "excess_pressure", "flow_pressure", "flowing_solid_fraction",
            "frame_pressure", "front_froude", "front_position", "grain_outlines", "height_at",
            "history_columns", "initial_column", "kinetic_energies", "line_points",
-           "local_outlines", "masses", "normalised_runout", "reference_point", "tank_size",
+           "local_outlines", "masses", "normalised_runout", "plots", "reference_point", "tank_size",
            "time_scale"]

@@ -88,7 +88,8 @@ def column_toml(packing: Packing, path, *, fluid: bool = True, core_ratio: float
     law = sc.contact_law
     lines = [f"# Collapse of a {packing.state} column of {packing.n} grains (a = "
              f"{packing.aspect:.3g}, solid fraction {packing.solid_fraction:.4f}), "
-             f"{'in water' if fluid else 'dry'}; gate at x = {packing.width:.6g} m removed at t = 0",
+             f"{'in water' if fluid else 'dry'}; gate at x = {packing.width:.6g} m "
+             "removed at t = 0",
              "", "[domain]", f"box = [{x0!r}, {y0!r}, {x1!r}, {y1!r}]",
              f"wall_thickness = {sc.wall_thickness!r}", "", "[column]",
              f"packing = {str(path)!r}", f"core_ratio = {core_ratio!r}", "", "[contacts]",

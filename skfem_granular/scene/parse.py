@@ -138,6 +138,24 @@ def grid_particles(d: dict) -> list[ParticleSpec]:
     return out
 
 
+def _contact_law(c, column) -> ContactLaw:
+    """The ``[contacts]`` table; a column's packing sets (and fixes) the stiffness ``E``."""
+    c = _table("contacts", c)
+    check_keys("contacts", c, {"E", "mu", "gamma"})
+    # checked here with the TOML field names (and booleans refused as numbers)
+    c = {k: num("contacts", k, v, lo=0, lo_open=(k == "E")) for k, v in c.items()}
+    if column is not None:
+        c = {"E": column.E, **c}
+        if c["E"] != column.E:
+            raise ValueError(f"contacts.E = {c['E']:g}: must be the column's packing "
+                             f"stiffness {column.E:g} (its grains rest with its overlaps)"
+                             "; leave it out")
+    try:
+        return ContactLaw(**c)
+    except ValueError as exc:
+        raise ValueError(str(exc).replace("ContactLaw.", "contacts.")) from None
+
+
 def scene_kwargs(data: dict, base=None) -> dict:
     """Keyword arguments of :class:`Scene` from the TOML dictionary.
 
@@ -185,23 +203,8 @@ def scene_kwargs(data: dict, base=None) -> dict:
     kw["particles"] = parts
     if "gravity" in data:
         kw["gravity"] = vec("scene", "gravity", data["gravity"])
-    if "contacts" in data:
-        c = data["contacts"]
-        check_keys("contacts", c, {"E", "mu", "gamma"})
-        # checked here with the TOML field names (and booleans refused as numbers)
-        c = {k: num("contacts", k, v, lo=0, lo_open=(k == "E")) for k, v in c.items()}
-        if column is not None:
-            c = {"E": column.E, **c}
-            if c["E"] != column.E:
-                raise ValueError(f"contacts.E = {c['E']:g}: must be the column's packing "
-                                 f"stiffness {column.E:g} (its grains rest with its overlaps)"
-                                 "; leave it out")
-        try:
-            kw["contact_law"] = ContactLaw(**c)
-        except ValueError as exc:
-            raise ValueError(str(exc).replace("ContactLaw.", "contacts.")) from None
-    elif column is not None:
-        kw["contact_law"] = ContactLaw(E=column.E)
+    if "contacts" in data or column is not None:
+        kw["contact_law"] = _contact_law(data.get("contacts", {}), column)
     if "mesh" in data:
         check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h"})
         kw["mesh"] = MeshSpec(**data["mesh"])
