@@ -58,12 +58,14 @@ def plot_runout_law(aspect, runout, spread=None, path=None, label="this DEM"):
     return fig
 
 
-def plot_pressure_lines(x, lines, path=None, scale=1.0, ylabel="excess pore pressure (Pa)"):
-    """Excess pore pressure along horizontal lines; ``lines`` maps a label to ``(n,)`` values."""
+def plot_pressure_lines(x, lines, path=None, scale=1.0, ylabel="excess pore pressure (Pa)",
+                        styles=None):
+    """Excess pore pressure along horizontal lines; ``lines`` maps a label to ``(n,)`` values
+    (``styles``: label -> matplotlib format string)."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(5.5, 3.5))
     for label, p in lines.items():
-        ax.plot(np.asarray(x) / scale, p, label=label)
+        ax.plot(np.asarray(x) / scale, p, (styles or {}).get(label, "-"), label=label)
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_xlabel("x / L0" if scale != 1.0 else "x (m)")
     ax.set_ylabel(ylabel)

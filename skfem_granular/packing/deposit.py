@@ -133,9 +133,10 @@ def prepare_column(n: int, aspect: float, state: str = "dense", *, shape: str = 
     density : float
         Grain density (kg/m^3).
     E : float
-        Contact stiffness during deposition (soft: large DEM steps; 1e6 N/m keeps the
-        overlaps at the floor of a 1000-grain column below 0.1 % of a grain's area, the
-        DEM's tolerance for overlaps at the start of a run).
+        Contact stiffness during deposition (soft: large DEM steps). The grains rest with
+        overlaps ``~ rho g H0 / E`` of their area (a few tenths of a percent for 1000
+        grains at 1e6 N/m; the packing records the largest, :attr:`Packing.max_overlap`,
+        and a collapse runs with the same stiffness).
     seed : int
         Seeds sizes, shapes, orientations and start positions: the same seed gives the
         same packing bit for bit.
@@ -145,7 +146,8 @@ def prepare_column(n: int, aspect: float, state: str = "dense", *, shape: str = 
     t_max : float
         Simulated time allowed for the grains to come to rest (s).
     progress : callable, optional
-        Called as ``progress(t, max_speed)`` after every chunk of the deposition.
+        Called as ``progress(t, speed)`` after every chunk of the deposition (the rms
+        speed in the first stage, the largest in the second).
 
     Returns
     -------
