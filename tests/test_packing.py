@@ -19,6 +19,7 @@ from skfem_granular.packing import (
     grain_outlines,
     load_packing,
     prepare_column,
+    prepare_to_fraction,
     solid_fraction,
 )
 
@@ -93,3 +94,22 @@ def test_load_refuses_what_is_not_a_packing(tmp_path):
     np.savez(tmp_path / "other.npz", a=np.zeros(3))
     with pytest.raises(ValueError, match="not a packing"):
         load_packing(tmp_path / "other.npz")
+
+
+@pytest.mark.parametrize("target", [0.95, 0.3, "dense"])
+def test_solid_fraction_beyond_any_packing_one_line(target):
+    with pytest.raises(ValueError, match=r"packing.target_fraction = .*: must be a number in "
+                                         r"\(0.5, 0.9069\)") as err:
+        prepare_to_fraction(30, 0.8, target)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.slow
+def test_target_fraction_bisection_and_out_of_reach():
+    # the 30-grain column poured with mu = 0 and mu = 1 spans ~0.77-0.86 (seed 3)
+    kw = {"seed": 3, **KW}
+    mid = 0.5 * (column_packing("dense").solid_fraction + column_packing("loose").solid_fraction)
+    p = prepare_to_fraction(30, 0.8, mid, tol=0.01, **kw)
+    assert abs(p.solid_fraction - mid) <= 0.01 and p.state.startswith("mu=")
+    with pytest.raises(ValueError, match="out of reach for these grains, pouring reaches"):
+        prepare_to_fraction(30, 0.8, 0.9, **kw)

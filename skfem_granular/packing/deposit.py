@@ -17,7 +17,7 @@ from ..dem import ContactLaw, DEMSystem, Particle, Polygon
 from .fraction import solid_fraction
 from .grains import SHAPES, diameter_range, grain_outlines
 from .packing import Packing
-from .protocol import FREEZE, PROTOCOLS
+from .protocol import FREEZE, PROTOCOLS, Protocol
 
 __all__ = ["GUESS_FRACTION", "REST_SPEED", "column_width", "deposition", "prepare_column",
            "surface_height"]
@@ -44,8 +44,9 @@ def _check(n, aspect, state, shape, size_ratio, width, d_max):
         raise ValueError(f"packing.n = {n!r}: must be an integer >= 1")
     if not (isinstance(aspect, (int, float)) and 0.05 <= aspect <= 20.0):
         raise ValueError(f"packing.aspect = {aspect!r}: must be a number in [0.05, 20]")
-    if state not in PROTOCOLS:
-        raise ValueError(f"packing.state = {state!r}: must be one of {', '.join(PROTOCOLS)}")
+    if not isinstance(state, Protocol) and state not in PROTOCOLS:
+        raise ValueError(f"packing.state = {state!r}: must be one of {', '.join(PROTOCOLS)} "
+                         "(or a Protocol)")
     if shape not in SHAPES:
         raise ValueError(f"packing.shape = {shape!r}: must be one of {', '.join(SHAPES)}")
     if not (isinstance(size_ratio, (int, float)) and 1.0 <= size_ratio <= 4.0):
@@ -126,8 +127,9 @@ def prepare_column(n: int, aspect: float, state: str = "dense", *, shape: str = 
     aspect : float
         Wanted ``a = H0 / L0``: the box width is chosen for it at a solid fraction of
         :data:`GUESS_FRACTION`; the packing reports the aspect it reached.
-    state : {"dense", "loose"}
-        The deposition protocol (:data:`~skfem_granular.packing.PROTOCOLS`).
+    state : {"dense", "loose"} or Protocol
+        The deposition protocol (:data:`~skfem_granular.packing.PROTOCOLS`), or one of
+        one's own (the packing's ``state`` then reads ``"mu=<friction>"``).
     shape, sides, d_mean, size_ratio
         Grains (:func:`~skfem_granular.packing.grain_outlines`).
     density : float
@@ -170,7 +172,8 @@ def prepare_column(n: int, aspect: float, state: str = "dense", *, shape: str = 
     X, top = _grid(local, width, rng)
     grains = [Particle(Polygon(P + X[:, [k]]), density, core_ratio=1.0)
               for k, P in enumerate(local)]
-    proto = PROTOCOLS[state]
+    proto = state if isinstance(state, Protocol) else PROTOCOLS[state]
+    name = f"mu={proto.mu:g}" if isinstance(state, Protocol) else state
     law = ContactLaw(E=E, mu=proto.mu, gamma=proto.gamma)
     dem = DEMSystem.in_box(grains, (0.0, 0.0, width, top), d_max, law=law,
                            gravity=(0.0, -gravity))
@@ -193,7 +196,7 @@ def prepare_column(n: int, aspect: float, state: str = "dense", *, shape: str = 
                          f"its solid fraction {margin:g} d_max from its edges; give more "
                          "grains or a smaller margin")
     return Packing(outlines=outlines, density=float(density), width=float(width),
-                   height=H0, solid_fraction=solid_fraction(outlines, window), state=state,
+                   height=H0, solid_fraction=solid_fraction(outlines, window), state=name,
                    shape=shape, seed=int(seed), d_mean=float(d_mean),
                    size_ratio=float(size_ratio), E=float(E), window=window,
                    settle_time=float(dem.t), max_overlap=overlap,
