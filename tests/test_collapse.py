@@ -94,6 +94,9 @@ def test_dry_release_energy_and_front_bounds(tmp_path):
     assert np.all(s["front"] - p.width <= 2 * np.sqrt(G * p.height) * s["t"] + 0.05 * p.d_max)
     assert s["runout"][-1] > 0.1  # it has started to spread
     assert s["gate_height"][0] == pytest.approx(1.0, abs=0.25)
+    assert np.all(s["froude"] <= 2.0)  # Ritter's front: dL/dt <= 2 sqrt(g H0)
+    phi = s["flowing_fraction"][np.isfinite(s["flowing_fraction"])]
+    assert phi.size and np.all((phi > 0.2) & (phi < np.pi / (2 * np.sqrt(3))))
     again = collapse_series(history_columns(tmp_path / "history.csv"), p, scene.domain)
     assert np.allclose(again["front"], s["front"], rtol=1e-12)  # from the saved run
 
