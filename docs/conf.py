@@ -72,7 +72,7 @@ suppress_warnings = ["mystnb.unknown_mime_type"]
 
 # ---------------------------------------------------------------- optional pages
 #: Pages listed in the index when their file is there (``OPTIONAL_PAGES`` in index.md).
-OPTIONAL_PAGES = ("meshing", "sedimentation")
+OPTIONAL_PAGES = ("meshing", "sedimentation", "collapse")
 HERE = Path(__file__).resolve().parent
 
 

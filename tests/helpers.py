@@ -7,6 +7,8 @@ between two regular polygons, a rectangle with an optional polygonal hole.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import triangle
 from skfem import MeshTri
@@ -72,3 +74,12 @@ def box(x0, y0, x1, y1, max_area, hole=None) -> MeshTri:
     b = mesh.boundaries
     walls = np.concatenate([b[k] for k in ("left", "right", "bottom", "top")])
     return mesh.with_boundaries({"wall": walls})
+
+
+@functools.cache
+def column_packing(state: str = "dense"):
+    """The canonical small column: 30 near-disks (d_max / d_min = 1.8), aspect 0.8, seed 3,
+    soft contacts (E = 2e5 N/m), solid fraction one d_max from the edges (cached)."""
+    from skfem_granular.packing import prepare_column
+
+    return prepare_column(30, 0.8, state, seed=3, E=2e5, margin=1.0)

@@ -92,7 +92,7 @@ CLI = [
     ("contacts-effect", scene("[effects]\ncontacts = 'maybe'\n"), [],
      ["effects.contacts = 'maybe'", "true, false or 'auto'"]),
     ("unknown-section", scene("[nonsense]\na = 1\n"), [],
-     ["scene: unknown key 'nonsense'", "allowed keys are contacts"]),
+     ["scene: unknown key 'nonsense'", "allowed keys are column, contacts"]),
     ("unknown-particle-key", scene(particles=particle(extra="mass = 1.0\n")), [],
      ["particles[0]: unknown key 'mass'", "allowed keys are angle"]),
     ("malformed-table-header", scene("[time\nt_end = 1\n", time=""), [],

@@ -21,6 +21,8 @@ lists the bundled scenes)::
                 angular_velocity, core_ratio, motion = {velocity, omega} |
                 {trajectory = [[t...], [x...], [y...], [angle...]]} (imposed motion)
     [grid]      nx, ny, sides, radius, spacing, origin, density, core_ratio, jitter
+    [column]    packing (a .npz file of skfem_granular.packing), core_ratio: a column
+                against the left wall behind a gate removed at t = 0
     [contacts]  E, mu, gamma
     [mesh]      kind = "graded" | "uniform" | "group", delta_l, sigma, h
     [time]      t_end, dt, dem_dt, adaptive, tol, dt_min

@@ -7,10 +7,11 @@ import numpy as np
 from ..dem import ContactLaw, Polygon, PrescribedMotion
 from ..fluid.properties import Fluid
 from ._checks import MAX_ANGLE, MAX_LENGTH, check_keys, num, vec
+from .column import COLUMN_OVERLAP_FACTOR, column_particles
 from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
 
 SECTIONS = {"domain", "fluid", "particles", "grid", "contacts", "mesh", "time", "effects",
-            "coupling", "output", "gravity"}
+            "coupling", "output", "gravity", "column"}
 PARTICLE_KEYS = {"sides", "radius", "center", "angle", "vertices", "density", "velocity",
                  "angular_velocity", "core_ratio", "motion"}
 MOTION_KEYS = {"velocity", "omega", "trajectory"}
@@ -152,8 +153,29 @@ def _check_count(parts: list, grid) -> None:
                          f"{MAX_PARTICLES}")
 
 
-def scene_kwargs(data: dict) -> dict:
-    """Keyword arguments of :class:`Scene` from the TOML dictionary."""
+def _contact_law(c, column) -> ContactLaw:
+    """The ``[contacts]`` table; a column's packing sets (and fixes) the stiffness ``E``."""
+    c = _table("contacts", c)
+    check_keys("contacts", c, {"E", "mu", "gamma"})
+    # checked here with the TOML field names (and booleans refused as numbers)
+    c = {k: num("contacts", k, v, lo=0, lo_open=(k == "E")) for k, v in c.items()}
+    if column is not None:
+        c = {"E": column.E, **c}
+        if c["E"] != column.E:
+            raise ValueError(f"contacts.E = {c['E']:g}: must be the column's packing "
+                             f"stiffness {column.E:g} (its grains rest with its overlaps)"
+                             "; leave it out")
+    try:
+        return ContactLaw(**c)
+    except ValueError as exc:
+        raise ValueError(str(exc).replace("ContactLaw.", "contacts.")) from None
+
+
+def scene_kwargs(data: dict, base=None) -> dict:
+    """Keyword arguments of :class:`Scene` from the TOML dictionary.
+
+    ``base``: the directory relative file names (``column.packing``) are read from.
+    """
     if not isinstance(data, dict):
         raise ValueError(
             f"scene = {data!r}: must be a table of sections ({', '.join(sorted(SECTIONS))})"
@@ -190,18 +212,16 @@ def scene_kwargs(data: dict) -> dict:
     parts = [_particle(f"particles[{i}]", p) for i, p in enumerate(parts)]
     if "grid" in data:
         parts += grid_particles(data["grid"])
+    column = None
+    if "column" in data:
+        grains, column = column_particles(data["column"], kw["domain"], base)
+        parts += grains
+        kw["overlap_tolerance"] = max(1e-3, COLUMN_OVERLAP_FACTOR * column.max_overlap)
     kw["particles"] = parts
     if "gravity" in data:
         kw["gravity"] = vec("scene", "gravity", data["gravity"])
-    if "contacts" in data:
-        c = data["contacts"]
-        check_keys("contacts", c, {"E", "mu", "gamma"})
-        # checked here with the TOML field names (and booleans refused as numbers)
-        c = {k: num("contacts", k, v, lo=0, lo_open=(k == "E")) for k, v in c.items()}
-        try:
-            kw["contact_law"] = ContactLaw(**c)
-        except ValueError as exc:
-            raise ValueError(str(exc).replace("ContactLaw.", "contacts.")) from None
+    if "contacts" in data or column is not None:
+        kw["contact_law"] = _contact_law(data.get("contacts", {}), column)
     if "mesh" in data:
         check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h"})
         kw["mesh"] = MeshSpec(**data["mesh"])

@@ -61,6 +61,10 @@ class Scene:
         steps; 0: never (SIGINT/SIGTERM still write one).
         ``Simulation.resume(directory)`` continues from it.
     name : str
+    overlap_tolerance : float
+        Largest overlap area of two outlines at the start, over the smaller one's area
+        (default 1e-3): a column at rest (``[column]``) overlaps by what its contact law
+        needs to carry the column's weight, and sets it from its packing.
     """
 
     domain: tuple
@@ -80,6 +84,7 @@ class Scene:
     vtu_every: int = 10
     checkpoint_every: int = 0
     name: str = "scene"
+    overlap_tolerance: float = 1e-3
 
     @property
     def moving_mesh(self) -> bool:
@@ -145,6 +150,7 @@ class Scene:
             raise ValueError(
                 f"output.directory = {self.output_dir!r}: must be a directory path (string)"
             )
+        num("scene", "overlap_tolerance", self.overlap_tolerance, lo=0, hi=0.1)
         self._check_dem_dt()
         if self.fluid is None and self.effects.fluid:
             object.__setattr__(self, "effects", replace(self.effects, fluid=False))
@@ -216,7 +222,7 @@ class Scene:
             raise ValueError(f"scene file {str(path)!r}: not UTF-8 text (TOML required)") from None
         except tomllib.TOMLDecodeError as exc:
             raise ValueError(f"scene file {str(path)!r}: not valid TOML ({exc})") from None
-        scene = cls.from_dict(data, name=path.stem)
+        scene = cls(name=path.stem, **scene_kwargs(data, base=path.parent))
         if scene.output_dir is not None and not Path(scene.output_dir).is_absolute():
             scene = replace(scene, output_dir=str(Path(scene.output_dir)))
         return scene

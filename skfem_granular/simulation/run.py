@@ -132,6 +132,7 @@ class Simulation:
             law=scene.contact_law,
             gravity=g,
             dt=scene.time.dem_dt,
+            overlap_tolerance=scene.overlap_tolerance,
         )
         self.contacts_active = (
             contacts_needed(scene, self.dem) if eff.contacts == "auto" else bool(eff.contacts)

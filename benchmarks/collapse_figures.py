@@ -1,0 +1,87 @@
+"""Figures of the collapse page from the benchmarks' results.
+
+Usage: ``python benchmarks/collapse_figures.py --dry results/collapse_dry_*.json
+[--flow-dir DIR --packing FILE.npz] [--out docs/figures]``.
+
+- ``collapse_dry_runout.png``: ``(L - L0) / L0`` against ``t / tau_c`` of every dry run;
+- ``collapse_dry_law.png``: final run-out against ``a`` (mean and sample standard deviation
+  over the seeds) with the published dry laws;
+- ``collapse_pressure_lines.png`` (with ``--flow-dir``): excess pore pressure along the
+  base and 10 d_mean above it in the saved flow frames of an immersed run, over
+  ``(rho_p - rho_f) g H0``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import meshio
+import numpy as np
+
+from skfem_granular.collapse import excess_pressure, line_points, reference_point
+from skfem_granular.collapse.plots import (
+    plot_pressure_lines,
+    plot_runout_curves,
+    plot_runout_law,
+)
+from skfem_granular.io import read_pvd
+from skfem_granular.packing import load_packing
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def dry_figures(paths, out):
+    runs = [r for p in paths for r in json.loads(Path(p).read_text())["runs"]]
+    curves = {f"a = {r['aspect']:.2f}, seed {r['seed']}": (r["runout_curve"]["t_over_tau"],
+                                                            r["runout_curve"]["runout"])
+              for r in runs}
+    plot_runout_curves(curves, out / "collapse_dry_runout.png")
+    aspects = sorted({r["aspect_wanted"] for r in runs})
+    a = [np.mean([r["aspect"] for r in runs if r["aspect_wanted"] == x]) for x in aspects]
+    m = [np.mean([r["runout"] for r in runs if r["aspect_wanted"] == x]) for x in aspects]
+    s = [np.std([r["runout"] for r in runs if r["aspect_wanted"] == x], ddof=1)
+         if sum(r["aspect_wanted"] == x for r in runs) > 1 else 0.0 for x in aspects]
+    plot_runout_law(a, m, s, out / "collapse_dry_law.png",
+                    label=f"this DEM ({runs[0]['n']} near-disks, mean and sd over seeds)")
+
+
+def pressure_figure(flow_dir, packing_path, out):
+    packing = load_packing(packing_path)
+    flow_dir = Path(flow_dir)
+    frames = read_pvd(flow_dir / "flow.pvd")
+    X = meshio.read(frames[0][1]).points
+    box = (X[:, 0].min(), X[:, 1].min(), X[:, 0].max(), X[:, 1].max())  # the tank
+    ref = reference_point(box, packing.d_max)
+    x0, x1 = 0.5 * packing.d_max, box[2] - 0.5 * packing.d_max
+    scale = (packing.density - 1000.0) * 9.81 * packing.height
+    lines, styles = {}, {}
+    picked = [frames[1], frames[len(frames) // 2], frames[-1]]
+    for k, (t, f) in enumerate(picked):
+        for name, y, ls in (("base", 0.02 * packing.d_mean, "-"),
+                            ("10 d", 10 * packing.d_mean, "--")):
+            P = line_points(x0, x1, y)
+            label = f"{name}, t = {1e3 * t:.1f} ms"
+            lines[label] = excess_pressure(f, P, ref) / scale
+            styles[label] = f"C{k}{ls}"
+    plot_pressure_lines(P[0], lines, out / "collapse_pressure_lines.png", scale=packing.width,
+                        ylabel=r"$(p - p_{ref}) / ((\rho_p - \rho_f) g H_0)$", styles=styles)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dry", nargs="*", default=[])
+    ap.add_argument("--flow-dir")
+    ap.add_argument("--packing")
+    ap.add_argument("--out", default=str(ROOT / "docs" / "figures"))
+    a = ap.parse_args(argv)
+    out = Path(a.out)
+    if a.dry:
+        dry_figures(a.dry, out)
+    if a.flow_dir:
+        pressure_figure(a.flow_dir, a.packing, out)
+
+
+if __name__ == "__main__":
+    main()

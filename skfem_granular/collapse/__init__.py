@@ -1,0 +1,39 @@
+"""The granular column collapse: scene, measurements and figures.
+
+A column prepared with :mod:`skfem_granular.packing` stands against the left wall
+of a tank behind a gate removed at ``t = 0`` (:func:`column_scene`, dry or
+immersed). The measurements are those collapse experiments report (Lajeunesse et
+al. 2005; Rondon, Pouliquen & Aussillous 2011; Kumar, Delenne & Soga): run-out
+against time normalised by ``L0`` and ``tau_c = sqrt(H0/g)``, the deposit profile
+and its height at the gate, horizontal and vertical kinetic energy, the solid
+fraction of the flowing mass, the front's Froude number and the excess pore
+pressure along horizontal lines (:mod:`.measures`, :mod:`.series`,
+:mod:`.pressure`); :mod:`.plots` draws them, :mod:`.laws` holds the published
+dry run-out laws.
+"""
+
+from . import plots
+from .laws import DRY_LAWS, dry_runout
+from .measures import (
+    deposit_profile,
+    flowing_solid_fraction,
+    front_froude,
+    front_position,
+    grain_outlines,
+    height_at,
+    kinetic_energies,
+    local_outlines,
+    masses,
+    normalised_runout,
+)
+from .pressure import excess_pressure, flow_pressure, frame_pressure, line_points, reference_point
+from .series import collapse_series, history_columns, initial_column
+from .setup import FRICTION, column_scene, column_toml, tank_size, time_scale
+
+__all__ = ["DRY_LAWS", "FRICTION", "collapse_series", "column_scene", "column_toml",
+           "deposit_profile",
+           "dry_runout", "excess_pressure", "flow_pressure", "flowing_solid_fraction",
+           "frame_pressure", "front_froude", "front_position", "grain_outlines", "height_at",
+           "history_columns", "initial_column", "kinetic_energies", "line_points",
+           "local_outlines", "masses", "normalised_runout", "plots", "reference_point", "tank_size",
+           "time_scale"]

@@ -1,0 +1,169 @@
+"""The column collapse: scene, measurements, a short dry and a short immersed release.
+
+References. Measurements: exact values on constructed arrangements (fronts, profiles,
+energies, a linear front's Froude number). Runs (the 30-grain column of
+``helpers.column_packing``, released at t = 0):
+
+- before release the fluid is at rest: total pressure = hydrostatic, i.e. the excess
+  pore pressure vanishes (to 1e-6 of rho_f g H);
+- energy balance: grains' (and fluid's) kinetic energy <= the potential energy released
+  (buoyancy-reduced in water) plus the elastic energy stored in the contacts at rest;
+- the front is never faster than the dam-break front of an inviscid fluid released
+  from rest, 2 sqrt(g H0) (Ritter), so L(t) - L0 <= 2 sqrt(g H0) t;
+- the excess pore pressure on the lines stays below the immersed weight of the column
+  per unit area, (rho_p - rho_f) g H0.
+"""
+
+import numpy as np
+import pytest
+from helpers import column_packing
+
+from skfem_granular.collapse import (
+    collapse_series,
+    column_scene,
+    deposit_profile,
+    excess_pressure,
+    flowing_solid_fraction,
+    front_froude,
+    front_position,
+    history_columns,
+    initial_column,
+    kinetic_energies,
+    line_points,
+    reference_point,
+)
+from skfem_granular.dem import Polygon
+from skfem_granular.scene import Scene
+from skfem_granular.simulation import Simulation
+
+G = 9.81
+
+
+def squares(xs, y=0.0, side=1.0):
+    return [Polygon.rectangle(x, y, x + side, y + side).vertices for x in xs]
+
+
+def test_front_stops_at_a_gap_wider_than_a_grain():
+    P = squares([0.0, 1.0, 2.5, 4.2, 7.0])  # gaps 0.5, 0.7, then 1.8 > 1
+    assert front_position(P) == pytest.approx(5.2, rel=1e-15)
+    assert front_position(P, gap=2.0) == pytest.approx(8.0, rel=1e-15)
+
+
+def test_profile_energies_froude_exact():
+    P = squares([0.0, 2.0]) + squares([0.0], y=1.0) + [Polygon.regular(4, 1.0, (5.0, 1.0)).vertices]
+    h = deposit_profile(P, [0.5, 1.5, 2.5, 4.5, 5.0, 5.25, 7.0])
+    assert np.allclose(h, [2.0, 0.0, 1.0, 1.5, 2.0, 1.75, 0.0], rtol=1e-14)  # diamond at (5, 1)
+    m, J = np.array([1.0, 2.0]), np.array([0.5, 0.25])
+    Ex, Ey, Er = kinetic_energies(m, J, np.array([[1.0, 2.0], [3.0, 0.0]]), np.array([2.0, 2.0]))
+    assert (Ex, Ey, Er) == (4.5, 4.5, 1.5)
+    t = np.linspace(0.0, 0.1, 11)
+    Fr = front_froude(t, 0.02 + 0.3 * t, 0.01)
+    assert np.allclose(Fr, 0.3 / np.sqrt(G * 0.01), rtol=1e-12)
+    lattice = [Polygon.rectangle(i + 0.1, j + 0.1, i + 0.9, j + 0.9).vertices
+               for i in range(4) for j in range(3)]
+    # hull of a 4 x 3 lattice of 0.8-squares: 3.8 x 2.8
+    assert flowing_solid_fraction(lattice, np.ones(12), 0.5) == pytest.approx(
+        12 * 0.64 / (3.8 * 2.8), rel=1e-12)
+    assert np.isnan(flowing_solid_fraction(lattice, np.zeros(12), 0.5))
+
+
+def _elastic_energy(sim):
+    dem = sim.dem
+    _, cf = dem.evaluate(dem.particles.q, dem.particles.v, 0.0, 0.0)
+    return float(cf.energy.sum())
+
+
+def _released(columns, m, p0, reduced):
+    """Potential energy released since t = 0 (buoyancy-reduced factor ``reduced``)."""
+    y = np.asarray(columns.y)
+    return reduced * G * ((p0["y"][0] - y) * m).sum(axis=1)
+
+
+def test_dry_release_energy_and_front_bounds(tmp_path):
+    p = column_packing("dense")
+    scene = column_scene(p, fluid=False, t_end=0.04, output_dir=str(tmp_path))
+    sim = Simulation(scene)
+    E0 = _elastic_energy(sim)
+    res = sim.run(progress=False)
+    s = collapse_series(res.history, p, scene.domain)
+    m = sim.dem.mass
+    released = _released(res.history, m, initial_column(p, scene.domain), 1.0)
+    E = s["E_x"] + s["E_y"] + s["E_rot"]
+    assert np.all(E <= released + E0)
+    assert released[-1] > 0.05 * m.sum() * G * p.height  # the column fell by > 5 % of H0
+    assert np.all(s["front"] - p.width <= 2 * np.sqrt(G * p.height) * s["t"] + 0.05 * p.d_max)
+    assert s["runout"][-1] > 0.1  # it has started to spread
+    assert s["gate_height"][0] == pytest.approx(1.0, abs=0.25)
+    assert np.all(s["froude"] <= 2.0)  # Ritter's front: dL/dt <= 2 sqrt(g H0)
+    phi = s["flowing_fraction"][np.isfinite(s["flowing_fraction"])]
+    assert phi.size and np.all((phi > 0.2) & (phi < np.pi / (2 * np.sqrt(3))))
+    again = collapse_series(history_columns(tmp_path / "history.csv"), p, scene.domain)
+    assert np.allclose(again["front"], s["front"], rtol=1e-12)  # from the saved run
+
+
+def test_immersed_release_pressure_and_energy(tmp_path):
+    p = column_packing("dense")
+    tank = (3.0 * p.width, 13.0 * p.d_max)
+    scene = column_scene(p, fluid=True, tank=tank, t_end=2e-3, delta_l=0.25 * p.d_mean,
+                         output_dir=str(tmp_path), vtu_every=5)
+    sim = Simulation(scene)
+    E0 = _elastic_energy(sim)
+    ref = reference_point(scene.domain, p.d_max)
+    lines = np.hstack([line_points(0.5 * p.d_max, tank[0] - 0.5 * p.d_max, 10 * p.d_mean),
+                       line_points(0.5 * p.d_max, tank[0] - 0.5 * p.d_max, 0.02 * p.d_mean)])
+    rho_f, H = 1000.0, tank[1]
+    p_scale = (p.density - rho_f) * G * p.height  # immersed weight per area of the column
+    worst = 0.0
+    for _t, _step in sim.evolve():
+        pex = excess_pressure(sim.stepper.flow(), lines, ref)
+        worst = max(worst, float(np.nanmax(np.abs(pex))))
+    frame0 = sorted(tmp_path.glob("flow*/*.vtu")) or sorted(tmp_path.glob("flow_*.vtu"))
+    before = excess_pressure(frame0[0], lines, ref)  # the frame at t = 0, before release
+    assert np.nanmax(np.abs(before)) <= 1e-6 * rho_f * G * H
+    assert 0.0 < worst < p_scale
+    h = sim.history
+    s = collapse_series(h, p, scene.domain)
+    released = _released(h, sim.dem.mass, initial_column(p, scene.domain),
+                          1.0 - rho_f / p.density)
+    E = s["E_x"] + s["E_y"] + s["E_rot"] + h.fluid_energy
+    assert np.all(E <= released + E0)
+    assert np.all(h.fluid_energy > 0)  # the grains set the fluid moving
+    assert np.all(s["front"] - p.width <= 2 * np.sqrt(G * p.height) * s["t"] + 0.05 * p.d_max)
+
+
+def _scene_dict(path, **column):
+    return {"domain": {"box": [0.0, 0.0, 0.02, 0.012]},
+            "column": {"packing": str(path), **column},
+            "effects": {"fluid": False}}
+
+
+def test_toml_column_reads_the_packing_next_to_it(tmp_path):
+    p = column_packing("dense")
+    p.save(tmp_path / "col.npz")
+    (tmp_path / "c.toml").write_text('[domain]\nbox = [0.0, 0.0, 0.02, 0.012]\n'
+                                     '[column]\npacking = "col.npz"\ncore_ratio = 0.9\n'
+                                     '[effects]\nfluid = false\n')
+    sc = Scene.from_toml(tmp_path / "c.toml")
+    assert len(sc.particles) == 30 and sc.contact_law.E == p.E
+    assert {q.core_ratio for q in sc.particles} == {0.9}
+    assert sc.overlap_tolerance >= p.max_overlap
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"domain": {"box": [0.0, 0.0, 0.005, 0.012]}},
+     r"column.packing: the gate at x = 0.00\d+ m .* must lie inside domain.box"),
+    ({"domain": {"box": [0.0, 0.0, 0.02, 0.004]}}, "column.packing: the column reaches y ="),
+    ({"contacts": {"E": 1e7}}, "contacts.E = 1e\\+07: must be the column's packing stiffness"),
+    ({"column": {"core_ratio": 1.5}}, r"column.core_ratio = 1.5: must be a finite number"),
+    ({"column": {"packing": "nowhere.npz"}}, "packing file .*nowhere.npz.*: not found"),
+    ({"column": {"gate": 0.01}}, "column: unknown key 'gate'"),
+])
+def test_bad_column_one_line(tmp_path, change, message):
+    path = tmp_path / "col.npz"
+    column_packing("dense").save(path)
+    d = _scene_dict(path)
+    for k, v in change.items():
+        d[k] = {**d.get(k, {}), **v}
+    with pytest.raises(ValueError, match=message) as err:
+        Scene.from_dict(d)
+    assert "\n" not in str(err.value)
