@@ -51,29 +51,38 @@ def run_column(history: dict, column: str) -> np.ndarray:
     return a if a.ndim == 1 else a[:, k]
 
 
+def floor_height(scene_name: str) -> tuple[float, float]:
+    """``(release height, centre height two radii above the floor)`` of a scene's disk
+    (the core: the disk the fluid sees)."""
+    scene = Scene.bundled(scene_name)
+    p = scene.particles[0]
+    V = np.asarray(p.polygon.vertices)
+    radius = (p.core_ratio or 1.0) * float(np.hypot(*(V - V.mean(axis=1)[:, None])).max())
+    return float(V[1].mean()), scene.domain[1] + 2.0 * radius
+
+
 def compare(curve: curves.Curve, result: dict) -> dict:
     """Every column of ``curve`` against the run in ``result`` (a results file's dict)."""
     h = result["history"]
     t = np.asarray(h["t"], dtype=float)
+    y0, y_stop = floor_height(result["scene"])
     out = {"curve": curve.name, "source": curve.source, "scene": result["scene"],
            "columns": {}}
     for col in curve.columns:
         if col == curve.x:
             continue
         if col == "vy":
-            scene = Scene.bundled(result["scene"])
-            p = scene.particles[0]   # the fluid's disk: the core
-            V = np.asarray(p.polygon.vertices)
-            radius = (p.core_ratio or 1.0) * float(np.hypot(*(V - V.mean(axis=1)[:, None])).max())
-            floor = scene.domain[1]
             out["columns"][col] = curves.compare_settling(
-                t, run_column(h, "y"), run_column(h, "vy"), curve,
-                y_stop=floor + 2.0 * radius, y0=float(V[1].mean()))
-        else:
-            x_ref, y_ref = curve.series(col)
-            d = curves.l2_difference(t, run_column(h, col), x_ref, y_ref)
-            out["columns"][col] = {"l2": d.l2, "relative": d.relative, "max_abs": d.max_abs,
-                                   "interval": (d.x0, d.x1)}
+                t, run_column(h, "y"), run_column(h, "vy"), curve, y_stop=y_stop, y0=y0)
+            continue
+        x_ref, y_ref = curve.series(col)
+        d = curves.l2_difference(t, run_column(h, col), x_ref, y_ref)
+        out["columns"][col] = {"l2": d.l2, "relative": d.relative, "max_abs": d.max_abs,
+                               "interval": (d.x0, d.x1)}
+        if col == "y":
+            out["columns"][col]["t_floor"] = {
+                "run": curves.time_to_floor(t, run_column(h, "y"), y_stop),
+                "reference": curves.time_to_floor(x_ref, y_ref, y_stop)}
     return out
 
 

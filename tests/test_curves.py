@@ -2,6 +2,7 @@
 difference over the fall and the time to the floor, on synthetic data with known
 answers."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -201,3 +202,46 @@ def test_settling_curves_benchmark_compares_a_stored_run_with_itself():
     # docs/sedimentation.md: down (speed below 10 % of its maximum) at 0.790 s
     assert out["t_down"]["run"] == pytest.approx(0.790, abs=1e-3)
     assert 0.75 < out["t_floor"]["run"] < out["t_down"]["run"]   # centre 2 radii up
+
+
+def test_shipped_settling_curves_agree_with_each_other():
+    """Glowinski et al.'s FEM curve (m/s) and Koblitz et al.'s (in their reference units,
+    converted here) are the same set-up: their peaks agree within 0.3 % (5.575 and
+    5.591 cm/s), and Koblitz's heights end at the resting disk, half a diameter up."""
+    g = curves.load_curve("glowinski2001_settling_vy")
+    k = curves.load_curve("koblitz2017_settling_vy")
+    ky = curves.load_curve("koblitz2017_settling_y")
+    for c in (g, k, ky):
+        assert c.source["repository"] and c.source["commit"] and c.setup["scene"]
+    peak_g, peak_k = -g.series("vy")[1].min(), -k.series("vy")[1].min()
+    assert peak_g == pytest.approx(0.05575, rel=1e-3)
+    assert peak_k == pytest.approx(peak_g, rel=3e-3)
+    t, y = ky.series("y")
+    assert y[0] == pytest.approx(0.04, rel=1e-2)               # released 4 cm up
+    assert np.mean(y[-5:]) == pytest.approx(1.25e-3, rel=0.06)  # resting: centre a radius up
+    assert t[-1] == pytest.approx(1.0, rel=1e-2)                 # 39.3 tref
+
+
+@pytest.mark.slow
+def test_settling_disk_channel_against_the_published_curves():
+    """The scene run to 0.8 s against Koblitz et al.'s and Glowinski et al.'s curves.
+
+    Measured (stored run of benchmarks/sedimentation.py, commit 4bee142): relative L2 of
+    v_y over [0, 0.7 s] 0.0043 (Koblitz) and 0.019 (Glowinski, whose disk accelerates
+    up to 6.7 % faster in the first 0.1 s); centre two radii above the floor at
+    0.7533 s against 0.7509 s (Koblitz's velocities), 0.7518 s (Koblitz's heights) and
+    0.7538 s (Glowinski's velocities)."""
+    from skfem_granular.scene import Scene, TimeSpec
+    from skfem_granular.simulation import Simulation
+
+    sc = Scene.bundled("settling_disk_channel")
+    sc = dataclasses.replace(sc, time=TimeSpec(t_end=0.8, dt=1e-3), output_dir=None)
+    h = Simulation(sc).run(progress=False).history
+    t, y, vy = h.t, h.y[:, 0], h.vy[:, 0]
+    k = curves.load_curve("koblitz2017_settling_vy")
+    g = curves.load_curve("glowinski2001_settling_vy")
+    assert curves.l2_difference(t, vy, *k.series("vy"), interval=(0.0, 0.7)).relative < 0.01
+    assert curves.l2_difference(t, vy, *g.series("vy"), interval=(0.0, 0.7)).relative < 0.03
+    out = curves.compare_settling(t, y, vy, k, y_stop=2.5e-3, y0=0.04)
+    assert out["t_floor"]["run"] == pytest.approx(0.7533, abs=2e-3)
+    assert out["t_floor"]["reference"] == pytest.approx(out["t_floor"]["run"], abs=5e-3)

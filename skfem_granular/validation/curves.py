@@ -24,10 +24,11 @@ code from the source). Format::
       "setup": {"scene": "settling_disk_channel", "notes": "..."}
     }
 
-Every column is converted to SI by its ``unit`` (:data:`UNITS`); ``x`` names the
-abscissa column, strictly increasing. ``source.paper``, ``source.repository``
-and ``source.file`` are required. :func:`load_curve` reads a curve by name (or a
-path, to check a file before adding it).
+Every column is converted to SI by its ``unit`` (:data:`UNITS`, or a unit the file
+defines: ``"units": {"tref": {"value": 0.025474, "unit": "s"}}`` for curves in
+reference units); ``x`` names the abscissa column, strictly increasing.
+``source.paper``, ``source.repository`` and ``source.file`` are required.
+:func:`load_curve` reads a curve by name (or a path, to check a file before adding it).
 
 Comparisons (plain arrays, tested on synthetic data with known answers):
 :func:`l2_difference` (the L2 difference of two piecewise-linear curves over their
@@ -112,19 +113,37 @@ def _fail(where: str, msg: str):
     raise ValueError(f"{where}: {msg}")
 
 
-def _column(where: str, key: str, col) -> np.ndarray:
+def _units(where: str, defined) -> dict:
+    """:data:`UNITS` and the file's own units (``{"name": {"value": v, "unit": u}}``)."""
+    units = dict(UNITS)
+    if defined is None:
+        return units
+    if not isinstance(defined, dict):
+        _fail(where, "units must be an object {name: {\"value\": ..., \"unit\": ...}}")
+    for name, d in defined.items():
+        ok = (isinstance(d, dict) and d.get("unit") in UNITS
+              and isinstance(d.get("value"), int | float) and np.isfinite(d["value"])
+              and d["value"] > 0)
+        if not ok:
+            _fail(where, f"units.{name} must be {{\"value\": a number > 0, \"unit\": one of "
+                         f"{', '.join(UNITS)}}}")
+        units[name] = float(d["value"]) * UNITS[d["unit"]]
+    return units
+
+
+def _column(where: str, key: str, col, units: dict) -> np.ndarray:
     if not isinstance(col, dict) or "values" not in col or "unit" not in col:
         _fail(where, f"columns.{key} must be {{\"unit\": ..., \"values\": [...]}}")
-    if col["unit"] not in UNITS:
+    if col["unit"] not in units:
         _fail(where, f"columns.{key}.unit = {col['unit']!r}: must be one of "
-                     f"{', '.join(UNITS)}")
+                     f"{', '.join(units)}")
     try:
         v = np.asarray(col["values"], dtype=float)
     except (TypeError, ValueError):
         _fail(where, f"columns.{key}.values must be numbers")
     if v.ndim != 1 or v.size < 2 or not np.all(np.isfinite(v)):
         _fail(where, f"columns.{key}.values must be at least 2 finite numbers")
-    return v * UNITS[col["unit"]]
+    return v * units[col["unit"]]
 
 
 def curve_from_dict(data: dict, where: str = "curve") -> Curve:
@@ -141,7 +160,8 @@ def curve_from_dict(data: dict, where: str = "curve") -> Curve:
     cols = data.get("columns")
     if not isinstance(cols, dict) or len(cols) < 2:
         _fail(where, "columns must hold the abscissa and at least one curve")
-    columns = {k: _column(where, k, c) for k, c in cols.items()}
+    units = _units(where, data.get("units"))
+    columns = {k: _column(where, k, c, units) for k, c in cols.items()}
     x = data.get("x")
     if x not in columns:
         _fail(where, f"x = {x!r}: must name a column ({', '.join(columns)})")
@@ -236,7 +256,7 @@ def time_down(t, v, fraction: float = 0.1) -> float:
 
 
 def compare_settling(t, y, vy, curve: Curve, y_stop: float, y0: float | None = None,
-                     column: str = "vy", fraction: float = 0.1) -> dict:
+                     column: str = "vy", fraction: float = 0.1, t0: float = 0.0) -> dict:
     """A settling run's velocity history against a digitised curve, over the fall.
 
     Parameters
@@ -253,6 +273,9 @@ def compare_settling(t, y, vy, curve: Curve, y_stop: float, y0: float | None = N
         (integrated from its velocities, :func:`fall_positions`); default ``y[0]``.
     fraction : float
         :func:`time_down`'s speed fraction.
+    t0 : float
+        Release time: a reference whose first sample is later is integrated from rest
+        at ``t0`` (the particle is released at rest).
 
     Returns
     -------
@@ -269,7 +292,11 @@ def compare_settling(t, y, vy, curve: Curve, y_stop: float, y0: float | None = N
     if "y" in curve.columns:
         y_ref = curve.columns["y"]
     else:
-        y_ref = fall_positions(t_ref, v_ref, float(y[0] if y0 is None else y0))
+        start = float(y[0] if y0 is None else y0)
+        if t_ref[0] > t0:  # from rest at the release
+            y_ref = fall_positions(np.r_[t0, t_ref], np.r_[0.0, v_ref], start)[1:]
+        else:
+            y_ref = fall_positions(t_ref, v_ref, start)
     floor = {}
     for key, (tt, yy) in {"run": (t, y), "reference": (t_ref, y_ref)}.items():
         try:
