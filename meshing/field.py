@@ -53,6 +53,7 @@ from .quality import angles_and_aspect, signed_areas
 from .relax import relax
 from .repair import REPAIR_ROUNDS, SAFE_MAX_ASPECT, SAFE_MIN_ANGLE, circumcenters, repair_nodes
 from .size_field import SizeField
+from .size_input import as_size
 from .skfem_mesh import to_body_fitted
 from .uniform import AREA_FACTOR
 from .value import BodyFittedMesh, Recipe
@@ -260,7 +261,8 @@ def joining_edges(layout: Layout, t: NDArray[np.int64], n_points: int
 
 def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
                sigma: float | None = None, delta_l: float | None = None, *,
-               max_elements: int = MAX_FIELD_ELEMENTS, relax_rounds: int = 0) -> skfem.MeshTri:
+               max_elements: int = MAX_FIELD_ELEMENTS, relax_rounds: int = 0,
+               size: object = None) -> skfem.MeshTri:
     """Graded mesh around many particles from a size field (module notes).
 
     Parameters
@@ -279,6 +281,11 @@ def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
         while filling); more raises ValueError. An integer ``>= 100``.
     relax_rounds
         Spring relaxation rounds of the fill nodes, ``0 <= relax_rounds <= 20``.
+    size
+        An outside target edge length (e.g. from a flow indicator): a callable
+        ``size(x) -> (M,)`` for points ``(2, M)``, or ``(points (2, N), values (N,))``
+        interpolated linearly (:mod:`meshing.size_input`). The mesh follows
+        ``min(rule, max(size, smallest outline edge))``; ``max_elements`` bounds it.
 
     Returns
     -------
@@ -294,7 +301,7 @@ def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
     apart, so about three elements lie across it; no edge joins two outlines.
     """
     return build_field(domain, particles, sigma=sigma, delta_l=delta_l,
-                       max_elements=max_elements, relax_rounds=relax_rounds).mesh
+                       max_elements=max_elements, relax_rounds=relax_rounds, size=size).mesh
 
 
 def check_max_elements(max_elements: object) -> int:
@@ -306,7 +313,7 @@ def check_max_elements(max_elements: object) -> int:
 
 def build_field(domain: object, particles: object, *, sigma: float | None = None,
                 delta_l: float | None = None, max_elements: int = MAX_FIELD_ELEMENTS,
-                relax_rounds: int = 0) -> BodyFittedMesh:
+                relax_rounds: int = 0, size: object = None) -> BodyFittedMesh:
     """:func:`field_mesh` as a :class:`~meshing.value.BodyFittedMesh`.
 
     What :func:`meshing.build` calls for ``kind="field"``.
@@ -323,7 +330,7 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
     if n_outline > max_elements:
         raise ValueError(f"{rule}: {n_outline} outline nodes alone exceed max_elements = "
                          f"{max_elements}; use a larger delta_l or raise max_elements")
-    field = SizeField(D, outlines, FIELD_SIGMA if sigma is None else sigma)
+    field = SizeField(D, outlines, FIELD_SIGMA if sigma is None else sigma, as_size(size))
     wall, wall_edge = wall_points(D, field)
     if wall.shape[1] > max_elements:
         raise ValueError(f"{rule}: {wall.shape[1]} wall nodes alone exceed max_elements = "
@@ -367,5 +374,5 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
             break
     recipe = Recipe("field", domain, tuple(outlines),
                     dict(sigma=sigma, delta_l=delta_l, max_elements=max_elements,
-                         relax_rounds=relax_rounds))
+                         relax_rounds=relax_rounds, **({} if size is None else {"size": size})))
     return to_body_fitted(tri, layout, recipe, outline_vertices=vertices)

@@ -24,6 +24,9 @@ class SizeField:
         Particle outlines (subdivided).
     sigma
         Growth factor (``None``: Eq. 4's ``1 + Delta_l / r0`` per particle).
+    extra
+        Optional size from outside (:mod:`meshing.size_input`): the size is then
+        ``min(own, max(extra(x), h_floor))``, ``h_floor`` the smallest outline edge.
 
     Calling the field at points ``x`` ``(2, M)`` gives ``min(grade(x), gap(x))``:
     ``grade = min(h_max, min_k dl_k + s_k d_k(x))`` (``d_k`` the distance to outline
@@ -34,11 +37,12 @@ class SizeField:
     """
 
     def __init__(self, D: NDArray[np.float64], outlines: list[NDArray[np.float64]],
-                 sigma: float | None) -> None:
+                 sigma: float | None, extra=None) -> None:
         from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
 
         self.D = D
         self.h_max = size_cap(D)
+        self.extra = extra
         n = len(outlines)
         counts = np.array([P.shape[1] for P in outlines])
         X = np.hstack(outlines)
@@ -77,6 +81,13 @@ class SizeField:
         self._L2 = np.maximum(np.sum(Ec * Ec, axis=2), 1e-300)
         self._tree = cKDTree(self.centers)
         self.k = min(NEAREST, n)
+        self.h_floor = float(self.dl.min())
+
+    def _limited(self, x: NDArray[np.float64], h: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``h`` limited by the outside size, if any (never below :attr:`h_floor`)."""
+        if self.extra is None:
+            return h
+        return np.minimum(h, np.maximum(self.extra(x), self.h_floor))
 
     def nearest(self, x: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
         """Distances ``(M, k)`` to the outlines of the ``k`` particles with the
@@ -120,13 +131,15 @@ class SizeField:
         t = np.clip((Rx * E[..., 0] + Ry * E[..., 1]) / L2, 0.0, 1.0)
         d = np.hypot(Rx - t * E[..., 0], Ry - t * E[..., 1])
         own = self._edge_owner[j[:, 0]]
-        return np.minimum(self.dl[own] + self.slope[own] * np.min(d, axis=1), self.h_max)
+        h = np.minimum(self.dl[own] + self.slope[own] * np.min(d, axis=1), self.h_max)
+        return self._limited(x, h)
 
     def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         if x.shape[1] == 0:
             return np.zeros(0)
         d, idx = self.nearest(x)
-        h = np.minimum(np.min(self.dl[idx] + self.slope[idx] * d, axis=1), self.h_max)
+        h = self._limited(x, np.minimum(np.min(self.dl[idx] + self.slope[idx] * d, axis=1),
+                                        self.h_max))
         dw = np.maximum(edge_distance(self.D, x)[0], 0.0)
         two = np.sort(np.column_stack([d, dw]), axis=1)[:, :2].sum(axis=1)
         narrow = two < 2.0 * self.dl[idx[:, 0]]

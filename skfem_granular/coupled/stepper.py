@@ -151,6 +151,9 @@ class CoupledStepper:
         #: moving mesh: why it was remeshed, ``{reason: count}`` (:func:`~.ale_rules.remesh_reason`)
         self.remesh_reasons = dict.fromkeys(REMESH_REASONS, 0)
         self._landing_remeshed = False  # a gap below LANDING_GAP has been remeshed for
+        #: a :class:`~.flow_size.FlowSizing` grades every remesh by the flow too (field
+        #: meshes); None (default): by the grains alone
+        self.flow_sizing = None
         self._set_mesh(mesh, centers, angles)
         self.state = CoupledState(u_n=np.zeros(self.space.nu), p_n=None,
                                   x=np.zeros(self.space.N), F_held=np.zeros((2, dem.n)),
@@ -241,7 +244,13 @@ class CoupledStepper:
         old_prev = (self.reference_space.moved(s.nodes_prev)
                     if self.ale and s.nodes_prev is not None and s.q_prev is not None
                     else None)
-        new_mesh = meshing.remesh(self.meshed, dem.core_outlines())
+        changes = {}
+        if self.flow_sizing is not None:
+            if self.meshed.recipe.kind != "field":
+                raise ValueError(f"flow_sizing: needs a 'field' mesh ([mesh] kind = "
+                                 f"\"field\"), the mesh is {self.meshed.recipe.kind!r}")
+            changes["size"] = self.flow_sizing(self.space, s.u_n)
+        new_mesh = meshing.remesh(self.meshed, dem.core_outlines(), **changes)
         self.timings["meshing"] += time.perf_counter() - t0
         self._set_mesh(new_mesh)
         t0 = time.perf_counter()
