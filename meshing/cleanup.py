@@ -26,7 +26,7 @@ WALL_MERGE_FRACTION = 0.5
 
 
 class Sizing:
-    """Target edge length ``h(x) = min_k max(dl_k, dl_k + s_k (|x - c_k| - r0_k))``.
+    """Target edge length ``h(x) = min(h_max, min_k max(dl_k, dl_k + s_k (|x - c_k| - r0_k)))``.
 
     Each source ``k`` is a particle (or a group's circle) with centre ``c_k``,
     radius ``r0_k``, surface edge length ``dl_k`` and growth slope
@@ -34,10 +34,14 @@ class Sizing:
     circle, ``d_{i+1} - d_i = (sigma - 1)(r_{i+1} - r_i)``, so the spacing is
     linear in the radius. With Eq. 4's default ``sigma = 1 + dl / r0`` this
     is ``h = dl r / r0``, the ring spacing ``r_{i+1} - r_i = dl r_i / r0``.
+    ``h_max`` caps the growth (a fraction of a narrow domain's width, see
+    :func:`meshing.graded.size_cap`; infinite by default).
     """
 
     def __init__(self, centers: NDArray[np.float64], dl: NDArray[np.float64],
-                 slope: NDArray[np.float64], r0: NDArray[np.float64]) -> None:
+                 slope: NDArray[np.float64], r0: NDArray[np.float64],
+                 h_max: float = np.inf) -> None:
+        self.h_max = float(h_max)
         self.centers = np.atleast_2d(np.asarray(centers, dtype=np.float64))
         self.dl = np.atleast_1d(np.asarray(dl, dtype=np.float64))
         self.slope = np.atleast_1d(np.asarray(slope, dtype=np.float64))
@@ -51,7 +55,8 @@ class Sizing:
     def per_source(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Sizes of every source at ``x``, shape ``(k, M)``."""
         r = np.hypot(x[0][None, :] - self.centers[:, 0:1], x[1][None, :] - self.centers[:, 1:2])
-        return np.maximum(self.dl[:, None], self.offset[:, None] + self.slope[:, None] * r)
+        h = np.maximum(self.dl[:, None], self.offset[:, None] + self.slope[:, None] * r)
+        return np.minimum(h, self.h_max)
 
     def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         if x.shape[1] == 0:
@@ -61,7 +66,8 @@ class Sizing:
         # the nearest few centres decide the minimum for similar sources
         _, idx = self._tree.query(x.T, k=min(8, self.dl.size))
         r = np.hypot(x[0][:, None] - self.centers[idx, 0], x[1][:, None] - self.centers[idx, 1])
-        return np.maximum(self.dl[idx], self.offset[idx] + self.slope[idx] * r).min(axis=1)
+        h = np.maximum(self.dl[idx], self.offset[idx] + self.slope[idx] * r).min(axis=1)
+        return np.minimum(h, self.h_max)
 
 
 def near_particles(particles: Sequence[NDArray[np.float64]], x: NDArray[np.float64],

@@ -45,13 +45,15 @@ from numpy.typing import NDArray
 
 from .cleanup import merge_degenerate
 from .gaps import split_gap_edges
-from .geometry import centroids, edge_distance
+from .geometry import centroids
 from .graded import check_rounds, check_sigma, prepare
 from .layer import GAP_FRACTION, WALL_FRACTION, layer_nodes
 from .pslg import Layout, Triangulation, fixed_point, triangulate
 from .quality import angles_and_aspect, signed_areas
 from .relax import relax
 from .repair import REPAIR_ROUNDS, SAFE_MAX_ASPECT, SAFE_MIN_ANGLE, circumcenters, repair_nodes
+from .size_field import SizeField
+from .size_input import as_size
 from .skfem_mesh import to_body_fitted
 from .uniform import AREA_FACTOR
 from .value import BodyFittedMesh, Recipe
@@ -75,128 +77,6 @@ MAX_FIELD_ELEMENTS = 2_000_000
 
 SPLIT_ROUNDS = 3
 """Rounds of splitting edges that join two outlines."""
-
-NEAREST = 6
-"""Particles (by centroid) searched for the nearest outline of a point."""
-
-
-
-class SizeField:
-    """Target edge length ``h(x)``: Eq. 4 growth from the nearest outline, narrowed in gaps.
-
-    Parameters
-    ----------
-    D
-        Domain outline ``(2, n)``.
-    outlines
-        Particle outlines (subdivided).
-    sigma
-        Growth factor (``None``: Eq. 4's ``1 + Delta_l / r0`` per particle).
-
-    Calling the field at points ``x`` ``(2, M)`` gives ``min(grade(x), gap(x))``:
-    ``grade = min_k dl_k + s_k d_k(x)`` (``d_k`` the distance to outline ``k``,
-    ``s_k = sigma - 1``) and, where the two nearest boundaries (outlines or the
-    wall) are closer together than two outline edges, half their distance.
-    """
-
-    def __init__(self, D: NDArray[np.float64], outlines: list[NDArray[np.float64]],
-                 sigma: float | None) -> None:
-        from scipy.spatial import cKDTree  # here: scipy.spatial takes ~0.1 s to import
-
-        self.D = D
-        n = len(outlines)
-        counts = np.array([P.shape[1] for P in outlines])
-        X = np.hstack(outlines)
-        first = np.cumsum(counts) - counts
-        owner = np.repeat(np.arange(n), counts)
-        nxt = np.arange(X.shape[1]) + 1
-        nxt[first + counts - 1] = first
-        E = X[:, nxt] - X
-        self.centers = centroids(outlines)
-        self.r0 = np.maximum.reduceat(np.hypot(*(X - self.centers.T[:, owner])), first)
-        self.dl = np.add.reduceat(np.hypot(*E), first) / counts
-        self.slope = self.dl / self.r0 if sigma is None else np.full(n, float(sigma) - 1.0)
-        # outline edges, for the graded size
-        self._edge_A, self._edge_E, self._edge_owner = X.T, E.T, owner
-        self._edge_tree = cKDTree(X.T + 0.5 * E.T)
-        prev = np.empty_like(nxt)
-        prev[nxt] = np.arange(nxt.size)
-        self._edge_prev, self._edge_next = prev, nxt
-        # the polygons without their subdivision nodes (same shapes, fewer edges), for
-        # the distances to whole particles: (n, m, 2), padded with empty edges
-        Ep = E[:, prev]
-        cross = Ep[0] * E[1] - Ep[1] * E[0]
-        corner = np.abs(cross) > 1e-9 * np.hypot(*Ep) * np.hypot(*E)
-        cid = np.flatnonzero(corner)
-        n_c = np.bincount(owner[cid], minlength=n)
-        rank = np.arange(cid.size) - np.repeat(np.cumsum(n_c) - n_c, n_c)
-        m = int(n_c.max())
-        A = np.repeat((X[:, cid[np.cumsum(n_c) - 1]].T)[:, None, :], m, axis=1)
-        A[owner[cid], rank] = X[:, cid].T
-        Ec = np.zeros((n, m, 2))
-        nxt_c = np.roll(A, -1, axis=1)
-        nxt_c[np.arange(n), n_c - 1] = A[:, 0]
-        valid = np.arange(m)[None, :] < n_c[:, None]
-        Ec[valid] = (nxt_c - A)[valid]
-        self._A, self._E = A, Ec
-        self._L2 = np.maximum(np.sum(Ec * Ec, axis=2), 1e-300)
-        self._tree = cKDTree(self.centers)
-        self.k = min(NEAREST, n)
-
-    def nearest(self, x: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
-        """Distances ``(M, k)`` to the outlines of the ``k`` particles with the
-        nearest centroids, and those particles' indices ``(M, k)``."""
-        M = x.shape[1]
-        _, idx = self._tree.query(x.T, k=self.k)
-        idx = np.asarray(idx).reshape(M, self.k)
-        d = np.empty((M, self.k))
-        Ax, Ay, Ex, Ey = self._A[..., 0], self._A[..., 1], self._E[..., 0], self._E[..., 1]
-        inv = 1.0 / self._L2
-        for a in range(0, M, 8192):
-            b = min(M, a + 8192)
-            ii = idx[a:b]
-            ex, ey = Ex[ii], Ey[ii]
-            rx, ry = x[0, a:b, None, None] - Ax[ii], x[1, a:b, None, None] - Ay[ii]
-            t = np.clip((rx * ex + ry * ey) * inv[ii], 0.0, 1.0)
-            rx -= t * ex
-            ry -= t * ey
-            d[a:b] = np.sqrt(np.min(rx * rx + ry * ry, axis=2))
-        return d, idx
-
-    def closest_point(self, x: NDArray[np.float64], k: NDArray[np.int64]) -> NDArray:
-        """The point of outline ``k[j]`` closest to ``x[:, j]``, ``(2, M)``."""
-        R = x.T[:, None, :] - self._A[k]
-        t = np.clip(np.sum(R * self._E[k], axis=2) / self._L2[k], 0.0, 1.0)
-        Y = self._A[k] + t[..., None] * self._E[k]
-        j = np.argmin(np.sum((x.T[:, None, :] - Y) ** 2, axis=2), axis=1)
-        return Y[np.arange(x.shape[1]), j].T
-
-    def grade(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The graded size alone (no gap narrowing), ``(M,)``: the rule over the
-        outline edge with the nearest midpoint and its two neighbours."""
-        M = x.shape[1]
-        if M == 0:
-            return np.zeros(0)
-        _, j = self._edge_tree.query(x.T)
-        j = np.column_stack([j, self._edge_prev[j], self._edge_next[j]])  # (M, 3)
-        A, E = self._edge_A[j], self._edge_E[j]                       # (M, 3, 2)
-        Rx, Ry = x[0][:, None] - A[..., 0], x[1][:, None] - A[..., 1]
-        L2 = np.maximum(E[..., 0] ** 2 + E[..., 1] ** 2, 1e-300)
-        t = np.clip((Rx * E[..., 0] + Ry * E[..., 1]) / L2, 0.0, 1.0)
-        d = np.hypot(Rx - t * E[..., 0], Ry - t * E[..., 1])
-        own = self._edge_owner[j[:, 0]]
-        return self.dl[own] + self.slope[own] * np.min(d, axis=1)
-
-    def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        if x.shape[1] == 0:
-            return np.zeros(0)
-        d, idx = self.nearest(x)
-        h = np.min(self.dl[idx] + self.slope[idx] * d, axis=1)
-        dw = np.maximum(edge_distance(self.D, x)[0], 0.0)
-        two = np.sort(np.column_stack([d, dw]), axis=1)[:, :2].sum(axis=1)
-        narrow = two < 2.0 * self.dl[idx[:, 0]]
-        return np.where(narrow, np.minimum(h, 0.5 * two), h)
-
 
 def wall_points(D: NDArray[np.float64], field: SizeField) -> tuple[NDArray, NDArray]:
     """Corners, then nodes splitting each domain edge at the size field along it.
@@ -381,7 +261,8 @@ def joining_edges(layout: Layout, t: NDArray[np.int64], n_points: int
 
 def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
                sigma: float | None = None, delta_l: float | None = None, *,
-               max_elements: int = MAX_FIELD_ELEMENTS, relax_rounds: int = 0) -> skfem.MeshTri:
+               max_elements: int = MAX_FIELD_ELEMENTS, relax_rounds: int = 0,
+               size: object = None) -> skfem.MeshTri:
     """Graded mesh around many particles from a size field (module notes).
 
     Parameters
@@ -400,6 +281,11 @@ def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
         while filling); more raises ValueError. An integer ``>= 100``.
     relax_rounds
         Spring relaxation rounds of the fill nodes, ``0 <= relax_rounds <= 20``.
+    size
+        An outside target edge length (e.g. from a flow indicator): a callable
+        ``size(x) -> (M,)`` for points ``(2, M)``, or ``(points (2, N), values (N,))``
+        interpolated linearly (:mod:`meshing.size_input`). The mesh follows
+        ``min(rule, max(size, smallest outline edge))``; ``max_elements`` bounds it.
 
     Returns
     -------
@@ -415,7 +301,7 @@ def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
     apart, so about three elements lie across it; no edge joins two outlines.
     """
     return build_field(domain, particles, sigma=sigma, delta_l=delta_l,
-                       max_elements=max_elements, relax_rounds=relax_rounds).mesh
+                       max_elements=max_elements, relax_rounds=relax_rounds, size=size).mesh
 
 
 def check_max_elements(max_elements: object) -> int:
@@ -427,7 +313,7 @@ def check_max_elements(max_elements: object) -> int:
 
 def build_field(domain: object, particles: object, *, sigma: float | None = None,
                 delta_l: float | None = None, max_elements: int = MAX_FIELD_ELEMENTS,
-                relax_rounds: int = 0) -> BodyFittedMesh:
+                relax_rounds: int = 0, size: object = None) -> BodyFittedMesh:
     """:func:`field_mesh` as a :class:`~meshing.value.BodyFittedMesh`.
 
     What :func:`meshing.build` calls for ``kind="field"``.
@@ -444,7 +330,7 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
     if n_outline > max_elements:
         raise ValueError(f"{rule}: {n_outline} outline nodes alone exceed max_elements = "
                          f"{max_elements}; use a larger delta_l or raise max_elements")
-    field = SizeField(D, outlines, FIELD_SIGMA if sigma is None else sigma)
+    field = SizeField(D, outlines, FIELD_SIGMA if sigma is None else sigma, as_size(size))
     wall, wall_edge = wall_points(D, field)
     if wall.shape[1] > max_elements:
         raise ValueError(f"{rule}: {wall.shape[1]} wall nodes alone exceed max_elements = "
@@ -488,5 +374,5 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
             break
     recipe = Recipe("field", domain, tuple(outlines),
                     dict(sigma=sigma, delta_l=delta_l, max_elements=max_elements,
-                         relax_rounds=relax_rounds))
+                         relax_rounds=relax_rounds, **({} if size is None else {"size": size})))
     return to_body_fitted(tri, layout, recipe, outline_vertices=vertices)

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from .geometry import edge_distance
 
 if TYPE_CHECKING:
-    from .field import SizeField
+    from .size_field import SizeField
 
 GAP_SPACING = 1.0 / 3.0
 """Outline spacing along a narrow gap, as a fraction of its width (three outline

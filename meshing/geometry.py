@@ -136,6 +136,15 @@ def subdivide(V: NDArray[np.float64], delta_l: float | None) -> NDArray[np.float
     return np.hstack(parts)
 
 
+def width(V: NDArray[np.float64]) -> float:
+    """Smallest width of a convex outline: the least distance between an edge's line
+    and the vertex farthest from it (a rectangle's shorter side)."""
+    E = np.roll(V, -1, axis=1) - V
+    n = np.vstack([-E[1], E[0]]) / np.hypot(*E)           # inward normals (ccw)
+    d = np.einsum("in,inm->nm", n, V[:, None, :] - V[:, :, None])   # (edge, vertex)
+    return float(np.min(np.max(d, axis=1)))
+
+
 def centroid(V: NDArray[np.float64]) -> NDArray[np.float64]:
     """Area centroid of a polygon, shape ``(2,)``."""
     x, y = V

@@ -24,6 +24,7 @@ from .graded import (
     prepare,
     ring_nodes,
     rings,
+    size_cap,
     sizing_of,
 )
 from .pslg import Layout, fixed_point, triangulate
@@ -148,7 +149,8 @@ def build_group(domain: object, particles: object, *, h: float | None = None,
                             f"{fixed_point(AREA_FACTOR * np.sqrt(3.0) / 4.0 * h * h)}")
     fixed, fixed_wall, fixed_wall_edge, segs = _fine_nodes(D, T, arc, fine, tri)
     r_max = float(np.max(np.hypot(*(D - c[:, None]))))
-    ring = rings(C, GROUP_SIGMA if sigma is None else sigma, r_max, center=c)
+    ring = rings(C, GROUP_SIGMA if sigma is None else sigma, r_max, center=c,
+                 h_max=max(size_cap(D), h))
     sizing = sizing_of([ring])
     free, proj, proj_edge = truncate(D, [T], ring_nodes(C, ring), sizing)
     wall, wall_edge = wall_nodes(D, proj, proj_edge, sizing, fixed_wall, fixed_wall_edge)
@@ -188,7 +190,8 @@ def fit_circle(D: NDArray[np.float64], allv: NDArray[np.float64], c: NDArray[np.
         if R is None:
             R = reach + 2.0 * h
         d = np.sum(n * (c[:, None] - D), axis=0)          # distance to each edge line
-        bad = np.flatnonzero((d > R * cos_min * (1.0 + 1e-9)) & (d < R + h))
+        # (1 - 1e-9) h: a circle shrunk to d - h below must pass despite the rounding
+        bad = np.flatnonzero((d > R * cos_min * (1.0 + 1e-9)) & (d < R + (1.0 - 1e-9) * h))
         if bad.size == 0:
             return c, R
         j = int(bad[np.argmin(d[bad])])

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from .geometry import edge_distance, inside, project_to_edge
 
 if TYPE_CHECKING:
-    from .field import SizeField
+    from .size_field import SizeField
 
 GAP_FRACTION = 0.5
 """A first-layer node lies at most this fraction of the way across a gap to

@@ -18,7 +18,9 @@ One step (monolithic coupling, the default):
 
 1. remesh first if a particle has moved ``remesh_fraction`` of its outline edge
    since the mesh was built, transferring ``u_n``, ``u_{n-1}`` and the BDF2
-   derivatives (:mod:`skfem_granular.coupled.transfer`);
+   derivatives (:mod:`skfem_granular.coupled.transfer`); a core closer to a wall or
+   another core than the mesh follows is remeshed once, then stops the run with the fix
+   (:mod:`skfem_granular.coupled.landing`);
 2. external forces: buoyancy-reduced gravity ``(m - rho_f A_core) g``; with
    contacts, the DEM subcycles over the step with the last fluid force held and
    gives the positions and the mean contact force (from the momentum change, so
@@ -75,6 +77,7 @@ from ..dem.motion import pose_derivative
 from ..fluid.errors import ConvergenceError
 from .ale_rules import ALE_SLIDE_WALLS, REMESH_REASONS, remesh_reason, step_geometry
 from .build import build_coupling, outline_areas, outline_edge
+from .landing import landing_check
 from .mesh_motion import MeshMotion
 from .state import CoupledState, StepReport
 from .transfer import lag, transfer_histories
@@ -147,6 +150,10 @@ class CoupledStepper:
         self.remesh_energy_ratios = []
         #: moving mesh: why it was remeshed, ``{reason: count}`` (:func:`~.ale_rules.remesh_reason`)
         self.remesh_reasons = dict.fromkeys(REMESH_REASONS, 0)
+        self._landing_remeshed = False  # a gap below LANDING_GAP has been remeshed for
+        #: a :class:`~.flow_size.FlowSizing` grades every remesh by the flow too (field
+        #: meshes); None (default): by the grains alone
+        self.flow_sizing = None
         self._set_mesh(mesh, centers, angles)
         self.state = CoupledState(u_n=np.zeros(self.space.nu), p_n=None,
                                   x=np.zeros(self.space.N), F_held=np.zeros((2, dem.n)),
@@ -203,13 +210,16 @@ class CoupledStepper:
             self.motion = MeshMotion(built, nodes, poses, slide_walls=ALE_SLIDE_WALLS)
         self.timings["assembly"] += time.perf_counter() - t0
 
-    def _remesh_if_moved(self):
-        """Remesh when a particle has moved too far; transfers the fluid histories."""
+    def _remesh_if_moved(self, force: bool = False):
+        """Remesh when a particle has moved too far (or ``force``); transfers the fluid
+        histories."""
         import meshing
 
         dem, sc, s = self.dem, self.scene, self.state
         moved = lag(self.mesh_centers, self.mesh_angles, dem.positions, dem.angles, self.radius)
-        if self.ale:
+        if force:
+            pass
+        elif self.ale:
             dt_ratio = (None if s.dt_prev is None or s.xi_prev is None
                         else sc.time.dt / s.dt_prev)
             reason = remesh_reason(self.motion, s.nodes_n, moved, dem.particles.q, s.q_prev,
@@ -234,7 +244,13 @@ class CoupledStepper:
         old_prev = (self.reference_space.moved(s.nodes_prev)
                     if self.ale and s.nodes_prev is not None and s.q_prev is not None
                     else None)
-        new_mesh = meshing.remesh(self.meshed, dem.core_outlines())
+        changes = {}
+        if self.flow_sizing is not None:
+            if self.meshed.recipe.kind != "field":
+                raise ValueError(f"flow_sizing: needs a 'field' mesh ([mesh] kind = "
+                                 f"\"field\"), the mesh is {self.meshed.recipe.kind!r}")
+            changes["size"] = self.flow_sizing(self.space, s.u_n)
+        new_mesh = meshing.remesh(self.meshed, dem.core_outlines(), **changes)
         self.timings["meshing"] += time.perf_counter() - t0
         self._set_mesh(new_mesh)
         t0 = time.perf_counter()
@@ -259,6 +275,20 @@ class CoupledStepper:
             self.remesh_energy_ratios.append(self.fluid_energy() / e_old)
         self.timings["remeshing"] += time.perf_counter() - t0
         self.remeshes += 1
+
+    def _check_landing(self):
+        """Stop with one line and the fix when a core is closer to a wall or another core
+        than the mesh follows (:mod:`~skfem_granular.coupled.landing`), after one remesh."""
+        msg = landing_check(self.dem, self.scene.domain, self.edge, self.contacts_active,
+                            self.state.t)
+        if msg is None:
+            self._landing_remeshed = False
+        elif (self._landing_remeshed or not self.scene.effects.remeshing
+              or getattr(self.meshed, "recipe", None) is None):
+            raise SimulationError(msg)
+        else:
+            self._landing_remeshed = True
+            self._remesh_if_moved(force=True)
 
     # ------------------------------------------------------------------ physics
     def weight(self) -> np.ndarray:
@@ -446,6 +476,7 @@ class CoupledStepper:
             step_target = s.dt_next
         while self.state.t < t_end - eps:
             self._remesh_if_moved()
+            self._check_landing()
             s = self.state
             step = min(step_target, dt)
             if s.dt_prev is not None:

@@ -65,7 +65,8 @@ class FieldTransfer:
 def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project=None) -> None:
     """Move the fluid histories of a :class:`~skfem_granular.coupled.state.CoupledState`
     from ``old`` onto ``new`` (in place): ``u_n``, ``du_n``, ``p_n`` and ``x`` at ``t_n``,
-    ``u_{n-1}`` and ``du_{n-1}`` at ``t_{n-1}``.
+    ``u_{n-1}`` and ``du_{n-1}`` at ``t_{n-1}``. Before the first step (``p_n`` None, a
+    first mesh rebuilt at once) the pressure stays None and ``x`` holds zero pressures.
 
     Parameters
     ----------
@@ -86,7 +87,7 @@ def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project
     tr = FieldTransfer(old, new)
     s.u_n = tr.velocity(s.u_n)
     s.du_n = None if s.du_n is None else tr.velocity(s.du_n)
-    s.p_n = tr.pressure(s.p_n)
+    s.p_n = None if s.p_n is None else tr.pressure(s.p_n)  # None: no step taken yet
     tr_prev = tr if old_prev is None else FieldTransfer(old_prev, new_prev)
     s.u_prev = None if s.u_prev is None else tr_prev.velocity(s.u_prev)
     s.du_prev = None if s.du_prev is None else tr_prev.velocity(s.du_prev)
@@ -95,4 +96,4 @@ def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project
         if s.u_prev is not None:
             op_prev = project if old_prev is None else project.moved(new_prev)
             s.u_prev = divergence_free_projection(op_prev, s.u_prev)
-    s.x = np.concatenate([s.u_n, s.p_n])
+    s.x = np.concatenate([s.u_n, np.zeros(new.N - new.nu) if s.p_n is None else s.p_n])

@@ -5,7 +5,9 @@ Navier-Stokes solves in the particle's frame
 (:func:`terminal_velocity_frame_solve`). :mod:`.measures`: the quantities the
 sedimentation benchmarks extract from a run's history (maximum particle
 Reynolds number, terminal velocity, kissing and tumbling times, lateral
-offset, orientation, angle of repose).
+offset, orientation, angle of repose). :mod:`.curves`: digitised published
+curves (package data ``curve_<name>.json``) and their comparison with a run (L2
+difference over the fall, time to the floor).
 """
 
 from .terminal import (

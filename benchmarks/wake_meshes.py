@@ -1,0 +1,96 @@
+"""A disk released just off the centreline at Re ~350: does the mesh let its wake shed?
+
+The set-up of ``benchmarks/settling_re350.py`` (2.5 mm 64-gon, rho_p / rho_f = 1.5,
+nu = 1e-6 m^2/s, closed 2 x 6 cm channel, steps of 0.25 ms), released ``--offset``
+(default 10 um) right of the centreline, run to ``--t-end`` (default 0.32 s) on one
+mesh: ``--mesh graded`` (the default mesh, ``--sigma`` optional), ``field`` (graded
+from the nearest outline) or ``flow`` (``field`` graded by the vorticity as well at
+every remesh: ``CoupledStepper.flow_sizing = FlowSizing(--eps, --budget)``).
+Records the lateral offset ``x - x0`` over time (largest, final), the largest
+Reynolds number, mesh sizes and the wall time.
+
+Writes ``benchmarks/results/wake_meshes_<tag>.json``.
+
+Usage: ``python benchmarks/wake_meshes.py --mesh flow --tag flow``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+
+import meshing
+from skfem_granular.coupled.flow_size import FlowSizing
+from skfem_granular.scene import Scene
+from skfem_granular.simulation import Simulation
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def scene(kind: str, offset: float, t_end: float, sigma: float | None) -> Scene:
+    mesh = {"kind": "field" if kind in ("field", "flow") else "graded"}
+    if sigma is not None:
+        mesh["sigma"] = sigma
+    return Scene.from_dict({
+        "domain": {"box": [0.0, 0.0, 0.02, 0.06]},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "particles": [{"sides": 64, "radius": 1.25e-3, "center": [0.01 + offset, 0.04],
+                       "density": 1500.0}],
+        "mesh": mesh, "effects": {"contacts": False},
+        "time": {"t_end": t_end, "dt": 2.5e-4}}, name="wake_meshes")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--mesh", choices=["graded", "field", "flow"], default="graded")
+    ap.add_argument("--sigma", type=float, default=None)
+    ap.add_argument("--offset", type=float, default=10e-6)
+    ap.add_argument("--t-end", type=float, default=0.32)
+    ap.add_argument("--eps", type=float, default=0.1)
+    ap.add_argument("--budget", type=int, default=20_000)
+    ap.add_argument("--tag", default=None)
+    a = ap.parse_args()
+    sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma))
+    if a.mesh == "flow":
+        sim.stepper.flow_sizing = FlowSizing(eps=a.eps, budget=a.budget)
+    sizes = []
+    t0 = time.perf_counter()
+    failed = None
+    try:
+        for _ in sim.evolve():
+            if not sizes or sizes[-1][1] != sim.mesh.p.shape[1]:
+                sizes.append((float(sim.stepper.state.t), int(sim.mesh.p.shape[1]),
+                              float(meshing.mesh_stats(sim.mesh).min_angle)))
+    except Exception as exc:  # a run that stops still reports what it measured
+        failed = str(exc)
+    wall = time.perf_counter() - t0
+    h = sim.history
+    t, x, vy = np.asarray(h.t), np.asarray(h.x[:, 0]), np.asarray(h.vy[:, 0])
+    dx = x - (0.01 + a.offset)
+    out = {"benchmark": "wake_meshes", "mesh": a.mesh, "sigma": a.sigma, "offset": a.offset,
+           "eps": a.eps if a.mesh == "flow" else None,
+           "budget": a.budget if a.mesh == "flow" else None, "t_end": float(t[-1]),
+           "failed": failed, "steps": len(t), "remeshes": sim.remeshes, "wall_s": wall,
+           "re_max": float(1000.0 * np.abs(vy).max() * 2.5e-3 / 1e-3),
+           "lateral_max": float(np.abs(dx).max()), "lateral_final": float(dx[-1]),
+           "t_lateral_max": float(t[int(np.argmax(np.abs(dx)))]),
+           "vertices": [s[1] for s in sizes], "min_angles": [s[2] for s in sizes],
+           "history": {"t": t[::4].tolist(), "dx": dx[::4].tolist(), "vy": vy[::4].tolist()},
+           "machine": platform.platform(),
+           "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                                    capture_output=True, text=True).stdout.strip()}
+    tag = a.tag or a.mesh
+    (ROOT / f"benchmarks/results/wake_meshes_{tag}.json").write_text(json.dumps(out, indent=1))
+    print(json.dumps({k: out[k] for k in ("mesh", "t_end", "failed", "remeshes", "re_max",
+                                          "lateral_max", "lateral_final", "wall_s")}))
+    print("vertices per mesh:", out["vertices"][:5], "...", out["vertices"][-3:])
+
+
+if __name__ == "__main__":
+    main()
