@@ -38,6 +38,7 @@ def analyse(study, runs, records) -> list[dict]:
                    mirror_symmetric=rec["mirror_symmetric"])
         for ph in ("meshing", "assembly", "solve", "other"):
             row[f"wall_{ph}"] = rec["wall"].get(ph, 0.0)
+        row["wall_warmup"] = rec.get("warmup", float("nan"))  # the process's, apart
         if ref is None:
             k = FAXEN["a"] / FAXEN["l"]
             row.update(reference=f"analytic Faxen (circle, k = {k:g})",

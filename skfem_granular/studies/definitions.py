@@ -18,9 +18,9 @@ SCENE = bundled("single_particle")
 FAXEN = {"box": (-3.0, -1.0, 3.0, 1.0), "a": 0.2, "l": 1.0}
 COLUMNS = ("key", "family", "kind", "n_sides", "h", "delta_l", "sigma", "dt", "seed",
            "vertices", "p2_nodes", "dofs", "wall_time", "wall_meshing", "wall_assembly",
-           "wall_solve", "wall_other", "peak_rss_mb", "quantity", "value", "reference",
-           "reference_value", "error", "error_curve", "mirror_symmetric", "rounding_mirror",
-           "rounding_renumber", "rounding_field")
+           "wall_solve", "wall_other", "wall_warmup", "peak_rss_mb", "quantity", "value",
+           "reference", "reference_value", "error", "error_curve", "mirror_symmetric",
+           "rounding_mirror", "rounding_renumber", "rounding_field")
 
 
 @dataclass(frozen=True)
