@@ -139,7 +139,8 @@ class OutputFolder:
             self.check()
             try:
                 fd = os.open(self.lock_path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:  # a stale lock: check() saw its holder gone
+            except FileExistsError:  # stale (check() saw its holder gone), or just taken
+                self._check_lock()  # by another run starting now: refused
                 self.lock_path.unlink(missing_ok=True)
                 continue
             with os.fdopen(fd, "w") as f:
