@@ -178,11 +178,17 @@ def test_lock_of_another_host_is_never_taken_over(tmp_path, capsys):
     _one_line(capsys, "pid 1 on another-host.invalid")
 
 
+def _sigint_default():
+    """In the child: SIGINT as a shell's foreground command gets it (a background job of a
+    shell without job control would inherit it ignored, and Python leaves it so)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _launch(argv, cwd):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     return subprocess.Popen([sys.executable, "-m", "skfem_granular.cli", "run", *argv],
                             cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=_sigint_default)
 
 
 def test_two_runs_started_into_one_folder_at_once(tmp_path, capsys):
