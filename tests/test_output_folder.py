@@ -341,3 +341,27 @@ def test_full_disk_at_the_lock_file_is_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(folder.os, "open", full)
     assert main(["run", *SHORT, "--out", str(tmp_path / "x")]) == 1
     _one_line(capsys, "output: No space left on device", LOCK_NAME)
+
+
+def test_second_signal_in_the_callers_loop_still_writes_everything(tmp_path):
+    """Library use: the second SIGTERM lands in the caller's loop body (StopNow, a
+    BaseException, reaches the caller); the generator, closed, writes the history of the
+    accepted steps and the summary, and restores the handlers."""
+    from skfem_granular.simulation.signals import StopNow
+
+    before = signal.getsignal(signal.SIGTERM)
+    sc = replace(Scene.bundled("single_particle"), time=TimeSpec(1e-4, 1e-5), output_dir=None)
+    sim = Simulation(sc, output_dir=tmp_path)
+    steps = 0
+    with pytest.raises(StopNow):
+        for _ in sim.evolve():
+            steps += 1
+            if steps == 3:
+                signal.raise_signal(signal.SIGTERM)
+                signal.raise_signal(signal.SIGTERM)
+    s = sim.result.summary
+    assert (s["status"], s["stopped_by"], s["stopped_at_once"], s["steps"]) == (
+        "stopped", "SIGTERM", True, 3)
+    assert json.loads((tmp_path / "summary.json").read_text())["stopped_at_once"] is True
+    assert read_csv(tmp_path / "history.csv")["t"].shape == (3,)
+    assert signal.getsignal(signal.SIGTERM) is before and not (tmp_path / LOCK_NAME).exists()
