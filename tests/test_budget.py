@@ -63,3 +63,19 @@ def test_a_raised_limit_lets_the_run_go():
         Simulation(sc, budget=Budget(max_elements=100))
     sim = Simulation(sc, budget=Budget(max_elements=400))  # the estimate: 398
     assert sim.mesh.t.shape[1] == 338
+
+
+def test_a_million_particles_are_refused_before_parsing(tmp_path, capsys):
+    """10^6 [[particles]] entries (before: still parsing after 150 s at 0.95 GB): the file's
+    size is refused before it is read."""
+    from skfem_granular.cli import main
+
+    entry = ("[[particles]]\nsides = 6\nradius = 1e-5\ncenter = [1e-3, 1e-3]\n"
+             "density = 2650.0\n")
+    path = tmp_path / "million.toml"
+    path.write_text("[domain]\nbox = [0.0, 0.0, 3e-3, 3e-3]\n" + entry * 10**6)
+    t0 = time.perf_counter()
+    assert main(["run", str(path), "--no-progress"]) == 2
+    assert time.perf_counter() - t0 < 1.0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "million.toml': 77 MB; at most 20 MB" in err[0], err

@@ -13,7 +13,8 @@ SCENES = bundled("single_particle").parent  # the bundled scenes (skfem_granular
 
 @pytest.fixture(scope="module")
 def paper():
-    return Scene.from_toml(SCENES / "single_particle.toml")
+    """The paper's single particle, writing no files (several runs per test)."""
+    return replace(Scene.from_toml(SCENES / "single_particle.toml"), output_dir=None)
 
 
 def _total_energy(sim, h):

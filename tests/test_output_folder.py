@@ -12,8 +12,9 @@ no file of the earlier run changed (unless ``--overwrite`` was given):
 - two SIGTERMs (or SIGINTs) 50 ms apart: exit status 143 (130), the history,
   the summary and the checkpoint written, and the run resumes bit for bit;
   SIGTERM/SIGINT during start-up: one line, 143/130, no traceback;
-- a full disk (an injected ``ENOSPC``) during the run: exit status 1, one
-  line, the files written before intact;
+- a full disk (an injected ``ENOSPC``, and a real 2 MB tmpfs when the tests run
+  as root) during the run: exit status 1, one line, the files written before
+  intact, and the run resumes once there is room;
 - a kill during the first checkpoint write: ``--resume`` says so.
 """
 
@@ -178,11 +179,17 @@ def test_lock_of_another_host_is_never_taken_over(tmp_path, capsys):
     _one_line(capsys, "pid 1 on another-host.invalid")
 
 
+def _sigint_default():
+    """In the child: SIGINT as a shell's foreground command gets it (a background job of a
+    shell without job control would inherit it ignored, and Python leaves it so)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _launch(argv, cwd):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     return subprocess.Popen([sys.executable, "-m", "skfem_granular.cli", "run", *argv],
                             cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=_sigint_default)
 
 
 def test_two_runs_started_into_one_folder_at_once(tmp_path, capsys):
@@ -335,3 +342,69 @@ def test_full_disk_at_the_lock_file_is_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(folder.os, "open", full)
     assert main(["run", *SHORT, "--out", str(tmp_path / "x")]) == 1
     _one_line(capsys, "output: No space left on device", LOCK_NAME)
+
+
+def test_second_signal_in_the_callers_loop_still_writes_everything(tmp_path):
+    """Library use: the second SIGTERM lands in the caller's loop body (StopNow, a
+    BaseException, reaches the caller); the generator, closed, writes the history of the
+    accepted steps and the summary, and restores the handlers."""
+    from skfem_granular.simulation.signals import StopNow
+
+    before = signal.getsignal(signal.SIGTERM)
+    sc = replace(Scene.bundled("single_particle"), time=TimeSpec(1e-4, 1e-5), output_dir=None)
+    sim = Simulation(sc, output_dir=tmp_path)
+    steps = 0
+    with pytest.raises(StopNow):
+        for _ in sim.evolve():
+            steps += 1
+            if steps == 3:
+                signal.raise_signal(signal.SIGTERM)
+                signal.raise_signal(signal.SIGTERM)
+    s = sim.result.summary
+    assert (s["status"], s["stopped_by"], s["stopped_at_once"], s["steps"]) == (
+        "stopped", "SIGTERM", True, 3)
+    assert json.loads((tmp_path / "summary.json").read_text())["stopped_at_once"] is True
+    assert read_csv(tmp_path / "history.csv")["t"].shape == (3,)
+    assert signal.getsignal(signal.SIGTERM) is before and not (tmp_path / LOCK_NAME).exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0,
+                    reason="mounting a small file system needs root")
+def test_a_small_file_system_fills_up(tmp_path, capsys):
+    """A real full disk: a 2 MB tmpfs fills up after 8 steps of a frame each. Exit status
+    1 and one line; the history (8 rows), the PVD indices, their frames and the checkpoint
+    (step 5) stay readable; once there is room, the run resumes to the uninterrupted
+    run's history, byte for byte."""
+    import meshio
+
+    from skfem_granular.io import read_pvd
+    from skfem_granular.simulation import checkpoint
+
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)],
+                      capture_output=True).returncode:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        out = mnt / "run"
+        argv = [*SHORT, "--t-end", "6e-4", "--vtu-every", "1"]
+        assert main(["run", *argv, "--out", str(out)]) == 1
+        _one_line(capsys, "writing the output failed: No space left on device",
+                  "the files written before are intact")
+        rows = read_csv(out / "history.csv")["t"].shape[0]
+        assert (out / "history.csv").read_text().endswith("\n")
+        k = checkpoint.load(out)["k"]
+        assert 5 <= k <= rows < 60
+        for series in ("flow", "particles"):
+            for _, f in read_pvd(out / f"{series}.pvd"):
+                assert meshio.read(f).points.shape[0] > 0
+        assert json.loads((out / "summary.json").read_text())["status"] == "failed"
+        subprocess.run(["mount", "-o", "remount,size=64m", str(mnt)], check=True)
+        assert main(["run", "--resume", str(out), "--no-progress"]) == 0
+        capsys.readouterr()
+        ref = tmp_path / "ref"
+        assert main(["run", *argv, "--out", str(ref)]) == 0
+        capsys.readouterr()
+        assert (out / "history.csv").read_bytes() == (ref / "history.csv").read_bytes()
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)

@@ -19,7 +19,8 @@ def _short(scene, t_end=1e-4, **kw):
 
 @pytest.fixture(scope="module")
 def paper():
-    return Scene.from_toml(SCENES / "single_particle.toml")
+    """The paper's single particle, writing no files unless given a folder."""
+    return replace(Scene.from_toml(SCENES / "single_particle.toml"), output_dir=None)
 
 
 def test_single_particle_sinks_with_effects_listed(paper, tmp_path):

@@ -321,7 +321,13 @@ def _check(data, where, K):
     if data["k"] != len(data["history"]):
         _fail(where, "k", f"= {data['k']}: must equal the number of history rows "
                           f"({len(data['history'])})")
-    dem = data["dem"]
+    _check_dem(data["dem"], where, K)
+    _check_stepper(data["stepper"], where, K)
+    _check_frames(data["frames"], where)
+
+
+def _check_dem(dem, where, K):
+    """The DEM state's arrays against the number of particles."""
     if not isinstance(dem, dict):
         _fail(where, "dem", "must be a dict")
     for name, shape in (("q", (3, K)), ("v", (3, K)), ("external_force", (2, K)),
@@ -344,7 +350,10 @@ def _check(data, where, K):
                 _check_array(where, f"dem.bdf2.{name}", bdf2[name], (3, K), none=True)
         if "dt_prev" in bdf2:
             _check_time(where, "dem.bdf2.dt_prev", bdf2["dt_prev"], none=True)
-    st = data["stepper"]
+
+
+def _check_stepper(st, where, K):
+    """The stepper's state: the mesh, the fluid and particle histories."""
     if not isinstance(st, dict):
         _fail(where, "stepper", "must be a dict")
     if "steps_taken" in st:
@@ -396,7 +405,10 @@ def _check(data, where, K):
         for name in ("since_remesh", "contact_age"):
             if hasattr(state, name):
                 _check_count(where, f"stepper.state.{name}", getattr(state, name))
-    frames = data["frames"]
+
+
+def _check_frames(frames, where):
+    """The frames written so far: ``(t, file)`` of the known series."""
     if not isinstance(frames, dict):
         _fail(where, "frames", "must be a dict")
     for name, lst in frames.items():

@@ -14,8 +14,10 @@ folder is refused with one line naming the holder while that process is
 alive; a lock left by a process that is gone (killed with SIGKILL, say) on
 this host is taken over. A lock from another host is never taken over (its
 process cannot be seen from here): remove the file by hand once that run is
-known to be gone. Left-overs of killed writers (``.partial-*``) are removed
-when a run takes the folder.
+known to be gone. A lock that cannot be read as JSON (a process killed
+between creating the file and writing its two fields) is treated the same
+way: refused, never taken over. Left-overs of killed writers (``.partial-*``)
+are removed when a run takes the folder.
 """
 
 from __future__ import annotations
@@ -139,7 +141,8 @@ class OutputFolder:
             self.check()
             try:
                 fd = os.open(self.lock_path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:  # a stale lock: check() saw its holder gone
+            except FileExistsError:  # stale (check() saw its holder gone), or just taken
+                self._check_lock()  # by another run starting now: refused
                 self.lock_path.unlink(missing_ok=True)
                 continue
             with os.fdopen(fd, "w") as f:
