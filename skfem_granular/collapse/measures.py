@@ -16,7 +16,6 @@ normalise with the packing's ``L0``, ``H0`` and ``tau_c = sqrt(H0 / g)``.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from ..dem import Polygon
 from ..dem.polygon import polygon_properties
@@ -124,6 +123,8 @@ def flowing_solid_fraction(outlines, speeds, v_min: float) -> float:
     The hull of a flowing layer over-counts the empty corners of a curved surface, so
     this is a lower estimate; ``nan`` with fewer than three moving grains.
     """
+    from scipy.spatial import ConvexHull  # scipy.spatial: imported when used
+
     moving = [P for P, s in zip(outlines, speeds, strict=True) if s > v_min]
     if len(moving) < 3:
         return float("nan")

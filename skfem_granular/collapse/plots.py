@@ -47,6 +47,13 @@ def plot_runout_law(aspect, runout, spread=None, path=None, label="this DEM"):
     ax.errorbar(aspect, runout, yerr=spread, fmt="o", color="k", capsize=3, label=label)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(ScalarFormatter())
+        axis.set_minor_formatter(NullFormatter())
+    ax.set_xticks([0.3, 0.5, 1, 2, 4, 6])
+    ax.set_yticks([0.5, 1, 2, 4, 8])
     ax.set_xlabel(r"$a = H_0 / L_0$")
     ax.set_ylabel(r"$(L_\infty - L_0) / L_0$")
     ax.legend(fontsize=8)

@@ -9,7 +9,6 @@ counter-clockwise, centred on their centroid.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from ..dem import Polygon
 
@@ -29,6 +28,8 @@ def diameter_range(d_mean: float, size_ratio: float) -> tuple[float, float]:
 def _unit_outline(shape: str, sides: int, rng) -> np.ndarray:
     """An outline of unit area-equivalent diameter, random orientation, centred."""
     if shape == "irregular":
+        from scipy.spatial import ConvexHull  # scipy.spatial: imported when used
+
         phi = np.sort(rng.uniform(0.0, 2.0 * np.pi, 7))
         r = rng.uniform(0.85, 1.0, 7)
         pts = np.column_stack([r * np.cos(phi), 0.7 * r * np.sin(phi)])
