@@ -2,7 +2,8 @@
 
 The set-up of ``benchmarks/settling_re350.py`` (2.5 mm 64-gon, rho_p / rho_f = 1.5,
 nu = 1e-6 m^2/s, closed 2 x 6 cm channel, steps of 0.25 ms), released ``--offset``
-(default 10 um) right of the centreline, run to ``--t-end`` (default 0.32 s) on one
+(default 10 um) right of the centreline 2 cm below the top of a channel ``--height``
+high (default 6 cm: the original's (1, 4) cm), run to ``--t-end`` (default 0.32 s) on one
 mesh: ``--mesh graded`` (the default mesh, ``--sigma`` optional), ``field`` (graded
 from the nearest outline) or ``flow`` (``field`` graded by the vorticity as well at
 every remesh: ``CoupledStepper.flow_sizing = FlowSizing(--eps, --budget)``).
@@ -33,14 +34,15 @@ from skfem_granular.simulation import Simulation
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def scene(kind: str, offset: float, t_end: float, sigma: float | None) -> Scene:
+def scene(kind: str, offset: float, t_end: float, sigma: float | None,
+          height: float = 0.06) -> Scene:
     mesh = {"kind": "field" if kind in ("field", "flow") else "graded"}
     if sigma is not None:
         mesh["sigma"] = sigma
     return Scene.from_dict({
-        "domain": {"box": [0.0, 0.0, 0.02, 0.06]},
+        "domain": {"box": [0.0, 0.0, 0.02, height]},
         "fluid": {"density": 1000.0, "viscosity": 1e-3},
-        "particles": [{"sides": 64, "radius": 1.25e-3, "center": [0.01 + offset, 0.04],
+        "particles": [{"sides": 64, "radius": 1.25e-3, "center": [0.01 + offset, height - 0.02],
                        "density": 1500.0}],
         "mesh": mesh, "effects": {"contacts": False},
         "time": {"t_end": t_end, "dt": 2.5e-4}}, name="wake_meshes")
@@ -54,9 +56,11 @@ def main():
     ap.add_argument("--t-end", type=float, default=0.32)
     ap.add_argument("--eps", type=float, default=0.1)
     ap.add_argument("--budget", type=int, default=20_000)
+    ap.add_argument("--height", type=float, default=0.06,
+                    help="channel height (m); released 2 cm below the top")
     ap.add_argument("--tag", default=None)
     a = ap.parse_args()
-    sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma))
+    sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma, a.height))
     if a.mesh == "flow":
         sim.stepper.flow_sizing = FlowSizing(eps=a.eps, budget=a.budget)
     sizes = []
@@ -74,6 +78,7 @@ def main():
     t, x, vy = np.asarray(h.t), np.asarray(h.x[:, 0]), np.asarray(h.vy[:, 0])
     dx = x - (0.01 + a.offset)
     out = {"benchmark": "wake_meshes", "mesh": a.mesh, "sigma": a.sigma, "offset": a.offset,
+           "height": a.height,
            "eps": a.eps if a.mesh == "flow" else None,
            "budget": a.budget if a.mesh == "flow" else None, "t_end": float(t[-1]),
            "failed": failed, "steps": len(t), "remeshes": sim.remeshes, "wall_s": wall,

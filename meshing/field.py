@@ -284,8 +284,9 @@ def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
     size
         An outside target edge length (e.g. from a flow indicator): a callable
         ``size(x) -> (M,)`` for points ``(2, M)``, or ``(points (2, N), values (N,))``
-        interpolated linearly (:mod:`meshing.size_input`). The mesh follows
-        ``min(rule, max(size, smallest outline edge))``; ``max_elements`` bounds it.
+        interpolated linearly after limiting their growth to ``sigma - 1`` per unit
+        distance (:mod:`meshing.size_input`). The mesh follows ``min(rule, max(size,
+        smallest outline edge))``; ``max_elements`` bounds it.
 
     Returns
     -------
@@ -330,7 +331,8 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
     if n_outline > max_elements:
         raise ValueError(f"{rule}: {n_outline} outline nodes alone exceed max_elements = "
                          f"{max_elements}; use a larger delta_l or raise max_elements")
-    field = SizeField(D, outlines, FIELD_SIGMA if sigma is None else sigma, as_size(size))
+    s = FIELD_SIGMA if sigma is None else sigma
+    field = SizeField(D, outlines, s, as_size(size, slope=s - 1.0))
     wall, wall_edge = wall_points(D, field)
     if wall.shape[1] > max_elements:
         raise ValueError(f"{rule}: {wall.shape[1]} wall nodes alone exceed max_elements = "
