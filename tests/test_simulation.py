@@ -271,6 +271,19 @@ def test_run_that_cannot_converge_stops_with_history_written(paper, tmp_path):
     assert (tmp_path / "history.csv").exists() and (tmp_path / "flow.pvd").exists()
 
 
+def test_run_without_a_folder_that_cannot_converge_says_where_its_state_is(paper):
+    """With no output folder the failure names no folder (it said 'written to None')."""
+    from skfem_granular.coupled.stepper import SimulationError
+
+    sim = Simulation(_short(paper, t_end=5e-5), output_dir=None)
+    sim.coupling.max_iterations = 1
+    with pytest.raises(SimulationError, match="no output folder: the last good state is in "
+                                              "sim.last_good") as err:
+        sim.run(progress=False)
+    assert "None" not in str(err.value)
+    assert sim.last_good.t == 0.0
+
+
 def test_cli_adaptive_run(tmp_path, capsys):
     """--tol turns adaptive steps on; the summary line says how the steps went."""
     code = main(["run", str(SCENES / "single_particle.toml"), "--out", str(tmp_path),

@@ -391,8 +391,10 @@ class Simulation:
                 out.frame(self.stepper.state.t)
             except OSError:
                 pass
-        raise SimulationError(f"{exc}; history and last good state written to "
-                              f"{self.output_dir}") from exc
+        where = ("no output folder: the last good state is in sim.last_good"
+                 if self.output_dir is None
+                 else f"history and last good state written to {self.output_dir}")
+        raise SimulationError(f"{exc}; {where}") from exc
 
     def _wrap_up(self, out: RunOutput, t_start):
         """Timings, summary, the history completed and ``summary.json``: :attr:`result` set."""
