@@ -30,12 +30,11 @@ before that lag grows past a fraction of the element size
 (:mod:`skfem_granular.coupled.transfer`).
 
 The corrector is a chord iteration on the factorised BDF2-Stokes matrix; when it
-contracts too slowly (:func:`~skfem_granular.fluid.newton.chord_stalled`, the test
-the fluid's BDF2 integrator makes too) the coupled Newton Jacobian is factorised at
-the iterate and the iteration continues on it (later steps with the same ``a0``
-reuse it). GMRES preconditioned by the held factorisation instead was measured on the
-collapse's contact phase: 12-25 iterations per correction, as costly as a new SuperLU
-factorisation at 20k unknowns.
+contracts by less than :data:`REFRESH_RATE` per iteration the coupled Newton
+Jacobian is factorised at the iterate and the iteration continues on it (later steps
+with the same ``a0`` reuse it). GMRES preconditioned by the held factorisation instead
+was measured on the collapse's contact phase: 12-25 iterations per correction, as
+costly as a new SuperLU factorisation at 20k unknowns.
 """
 
 from __future__ import annotations
@@ -50,18 +49,20 @@ from .. import timestep as ts
 from ..fluid.errors import ConvergenceError
 from ..fluid.factor_cache import FactorCache
 from ..fluid.linsolve import make_solver
-from ..fluid.newton import chord_converged, chord_stalled, newton_iterate
+from ..fluid.newton import chord_converged, newton_iterate
 from .rigid import RigidParticles
 
-#: Further chord iterations the corrector accepts (at the contraction rate it shows)
-#: before it factorises the coupled Newton Jacobian at the iterate
-#: (:func:`~skfem_granular.fluid.newton.chord_stalled`). A chord iteration costs a
-#: back-substitution and a residual, a refresh an assembly and a factorisation: about 25
-#: iterations at 20k unknowns. Measured on the collapse to 0.08 s (400 steps, 12.7k-21k
-#: unknowns): 3 gave 184 refreshes and 4.3 iterations a step, 10 gave 93 and 6.2, 20 gave
-#: fewer refreshes again but more time (the moving mesh in closing gaps makes a refreshed
-#: Jacobian stale within a few steps).
-CHORD_PATIENCE = 10.0
+#: When the chord iteration contracts by less than this per iteration (the moving mesh in
+#: closing gaps, strong convection: far from the chord operator), the coupled Newton
+#: Jacobian is factorised at the iterate and the iteration continues on it (later steps
+#: with the same ``a0`` reuse it). Measured on the collapse against the rule of the fluid
+#: integrator (:func:`~skfem_granular.fluid.newton.chord_stalled`: refresh when more than
+#: ``patience`` further iterations would be needed at the current rate), to 0.08 s: this
+#: rule 130 refreshes and 5.1 iterations a step; patience 3: 184 and 4.3; 10: 93 and 6.2;
+#: 20: 80 and 7.6. With patience 10 the whole collapse took 0.97x this rule's CPU time at
+#: load 9 and 1.14-1.19x on a quieter machine: the saved factorisations cost more in
+#: chord iterations than they save.
+REFRESH_RATE = 0.3
 
 
 class MonolithicCoupling(RigidParticles):
@@ -97,7 +98,7 @@ class MonolithicCoupling(RigidParticles):
 
     def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
                  convection: bool = True, rotation: bool = True, solver: str = "auto",
-                 newton_tol: float = 1e-8, max_iterations: int = 30, imposed=None):
+                 newton_tol: float = 1e-8, max_iterations: int = 15, imposed=None):
         super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
                          rotation=rotation, imposed=imposed)
         self._xi_imposed = None  # the imposed particles' rigid velocities of the step
@@ -369,8 +370,8 @@ class MonolithicCoupling(RigidParticles):
             tol = self.newton_tol * max(scale, float(np.abs(z[: self.nu_z]).max()))
             prev, last["dn"] = last["dn"], dn
             done = chord_converged(dn, 0.0 if prev is None else prev, it, tol)
-            if (not done and it >= last["refreshed"] + 2
-                    and chord_stalled(dn, prev, tol, CHORD_PATIENCE)):
+            if (not done and it >= last["refreshed"] + 2 and prev is not None
+                    and dn > REFRESH_RATE * prev):
                 # the chord operator (the BDF2-Stokes matrix, or an older Jacobian) is too
                 # far from this step's: a fresh Newton Jacobian before the next correction
                 last["refresh"] = True

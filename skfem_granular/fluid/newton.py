@@ -75,9 +75,10 @@ def chord_stalled(dn: float, prev: float | None, tol: float, patience: float = 3
     contraction rate ``dn / prev``, it would need more than ``patience`` further
     iterations to bring the update ``dn`` down to ``tol``.
 
-    Both time-dependent correctors ask this: the fluid's BDF2 integrator then goes on
-    with GMRES on the exact Jacobian preconditioned by the same factorisation, the
-    monolithic coupling factorises the coupled Newton Jacobian at the iterate.
+    The fluid's BDF2 integrator then goes on with GMRES on the exact Jacobian
+    preconditioned by the same factorisation. (The monolithic coupling refreshes its
+    Jacobian on a simpler rate test, measured faster there:
+    :data:`~skfem_granular.coupled.monolithic.REFRESH_RATE`.)
     """
     if prev is None or prev <= 0.0 or dn <= tol:
         return False
