@@ -157,14 +157,15 @@ def test_cli_smoke_study_writes_table_and_figures(tmp_path, capsys):
     for name in ("table.csv", "table.md", "pareto.png", "convergence.png", "fig2.png"):
         assert (out / name).stat().st_size > 0
     # the Pareto plot's costs are warm (each process's warm-up reported apart): they grow
-    # with the problem, the finest run costing at least its DOF ratio to the power 0.8
-    # times the coarsest (with the warm-up in, the 12-gon's 610 DOFs were booked at 0.46 s
-    # against 0.1 s warm, meshing included)
+    # with the problem. Measured finest / coarsest (21570 / 647 DOFs): 15.3x and 18.5x,
+    # exponents 0.78 and 0.83 (the smallest run's 30-40 ms are mostly meshing); with the
+    # 0.7-0.9 s warm-up in each run it was about 2.5x (exponent 0.26). The bound 0.5 tells
+    # the two apart with room for a loaded machine.
     rows = [r for r in _table(out / "table.csv") if r["seed"] == "0"]
     assert all(float(r["wall_warmup"]) > 0 for r in rows)
     coarse = min(rows, key=lambda r: int(r["dofs"]))
     fine = max(rows, key=lambda r: int(r["dofs"]))
     ratio = int(fine["dofs"]) / int(coarse["dofs"])
-    assert float(fine["wall_time"]) >= float(coarse["wall_time"]) * ratio**0.8
+    assert float(fine["wall_time"]) >= float(coarse["wall_time"]) * ratio**0.5
     assert main(["study", "faxen", "--smoke", "--out", str(out)]) == 0  # resumed: nothing to do
     assert "0 runs computed, 18 reused" in capsys.readouterr().out
