@@ -33,6 +33,7 @@ from skfem_granular.collapse import (
     column_scene,
     dry_runout,
     front_position,
+    realisations,
     time_scale,
 )
 from skfem_granular.packing import prepare_column
@@ -80,11 +81,6 @@ def run(n, aspect, seed, state, shape):
     return row
 
 
-def stats(values):
-    v = np.asarray(values, dtype=float)
-    return {"mean": float(v.mean()), "std": float(v.std(ddof=1)) if v.size > 1 else None,
-            "min": float(v.min()), "max": float(v.max()), "count": int(v.size)}
-
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -105,8 +101,8 @@ def main(argv=None):
             for asp in a.aspects:
                 mine = [r for r in rows if r["aspect_wanted"] == asp]
                 if mine:
-                    summary[str(asp)] = {"aspect": stats([r["aspect"] for r in mine]),
-                                         "runout": stats([r["runout"] for r in mine]),
+                    summary[str(asp)] = {"aspect": realisations([r["aspect"] for r in mine]),
+                                         "runout": realisations([r["runout"] for r in mine]),
                                          "laws": {k: float(dry_runout(np.mean(
                                              [r["aspect"] for r in mine]), k))
                                              for k in DRY_LAWS}}

@@ -22,8 +22,7 @@ import platform
 import time
 from pathlib import Path
 
-import numpy as np
-
+from skfem_granular.collapse import realisations
 from skfem_granular.packing import prepare_column
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -52,11 +51,6 @@ def run(n, state, seed, aspect, shape, save_dir):
     return row
 
 
-def stats(values):
-    v = np.asarray(values, dtype=float)
-    return {"mean": float(v.mean()), "std": float(v.std(ddof=1)) if v.size > 1 else None,
-            "min": float(v.min()), "max": float(v.max()), "count": int(v.size)}
-
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -75,9 +69,11 @@ def main(argv=None):
     out = {"benchmark": "packing", "machine": platform.platform(), "cpus": os.cpu_count(),
            "python": platform.python_version(), "target": "1000 grains in <= 900 s",
            "runs": rows,
-           "solid_fraction": {s: stats([r["solid_fraction"] for r in rows if r["state"] == s])
+           "solid_fraction": {s: realisations([r["solid_fraction"] for r in rows
+                                                if r["state"] == s])
                               for s in a.states},
-           "wall_time_s": {s: stats([r["wall_time_s"] for r in rows if r["state"] == s])
+           "wall_time_s": {s: realisations([r["wall_time_s"] for r in rows
+                                             if r["state"] == s])
                            for s in a.states}}
     tag = a.tag or f"n{a.n}"
     path = RESULTS / f"packing_{tag}.json"

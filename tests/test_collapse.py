@@ -167,3 +167,17 @@ def test_bad_column_one_line(tmp_path, change, message):
     with pytest.raises(ValueError, match=message) as err:
         Scene.from_dict(d)
     assert "\n" not in str(err.value)
+
+
+def test_realisations_give_mean_and_sample_spread():
+    """Chaotic runs are reported over seeds: mean and sample standard deviation (n - 1)."""
+    from skfem_granular.collapse import realisations
+
+    r = realisations([1.0, 2.0, 4.0])
+    assert r["mean"] == pytest.approx(7.0 / 3.0, rel=1e-15)
+    assert r["std"] == pytest.approx(np.sqrt(((1 - 7 / 3) ** 2 + (2 - 7 / 3) ** 2
+                                              + (4 - 7 / 3) ** 2) / 2), rel=1e-15)
+    assert (r["min"], r["max"], r["count"]) == (1.0, 4.0, 3)
+    assert realisations([5.0])["std"] is None
+    with pytest.raises(ValueError, match="one value per realisation"):
+        realisations([])

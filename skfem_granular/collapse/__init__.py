@@ -25,6 +25,7 @@ from .measures import (
     local_outlines,
     masses,
     normalised_runout,
+    realisations,
 )
 from .pressure import excess_pressure, flow_pressure, frame_pressure, line_points, reference_point
 from .series import collapse_series, history_columns, initial_column
@@ -35,5 +36,5 @@ __all__ = ["DRY_LAWS", "FRICTION", "collapse_series", "column_scene", "column_to
            "dry_runout", "excess_pressure", "flow_pressure", "flowing_solid_fraction",
            "frame_pressure", "front_froude", "front_position", "grain_outlines", "height_at",
            "history_columns", "initial_column", "kinetic_energies", "line_points",
-           "local_outlines", "masses", "normalised_runout", "plots", "reference_point", "tank_size",
-           "time_scale"]
+           "local_outlines", "masses", "normalised_runout", "plots", "realisations",
+           "reference_point", "tank_size", "time_scale"]

@@ -23,7 +23,7 @@ from ..packing import Packing
 
 __all__ = ["deposit_profile", "flowing_solid_fraction", "front_froude", "front_position",
            "grain_outlines", "height_at", "kinetic_energies", "local_outlines", "masses",
-           "normalised_runout"]
+           "normalised_runout", "realisations"]
 
 
 def local_outlines(packing: Packing) -> tuple[list[np.ndarray], np.ndarray]:
@@ -132,3 +132,13 @@ def flowing_solid_fraction(outlines, speeds, v_min: float) -> float:
     A = sum(0.5 * float(np.dot(P[0], np.roll(P[1], -1)) - np.dot(np.roll(P[0], -1), P[1]))
             for P in moving)
     return A / ConvexHull(V.T).volume
+
+
+def realisations(values) -> dict:
+    """A quantity over realisations (seeds) of a chaotic run: ``mean``, ``std`` (sample
+    standard deviation, None for one value), ``min``, ``max`` and ``count``."""
+    v = np.asarray(values, dtype=float)
+    if v.ndim != 1 or v.size == 0:
+        raise ValueError(f"values: shape {v.shape}; expected one value per realisation")
+    return {"mean": float(v.mean()), "std": float(v.std(ddof=1)) if v.size > 1 else None,
+            "min": float(v.min()), "max": float(v.max()), "count": int(v.size)}
