@@ -391,3 +391,12 @@ def test_dem_force_callbacks_act_in_coupled_runs():
     sim.dem.force_callbacks.append(lambda dem, t: (up, np.zeros(dem.n)))
     res = sim.run(progress=False).history
     assert np.abs(res.vy / ref.vy - 0.5).max() < 1e-6
+
+
+def test_a_force_callback_of_the_wrong_shape_is_one_line():
+    sc = replace(Scene.bundled("single_particle"), output_dir=None)
+    sim = Simulation(sc)
+    sim.dem.force_callbacks.append(lambda dem, t: (np.zeros(3), 0.0))
+    with pytest.raises(ValueError, match=r"force_callbacks\[0\]: must return \(F, T\) of "
+                                         r"shapes \(2, 1\) and \(1,\)"):
+        sim.stepper.callback_forces(0.0)

@@ -307,10 +307,14 @@ class CoupledStepper:
         forces (the DEM's substeps through contacts see the same held value)."""
         dem = self.dem
         F, T = np.zeros((2, dem.n)), np.zeros(dem.n)
-        for f in dem.force_callbacks:
-            Fc, Tc = f(dem, t)
-            F = F + np.broadcast_to(np.asarray(Fc, dtype=float), (2, dem.n))
-            T = T + np.broadcast_to(np.asarray(Tc, dtype=float), (dem.n,))
+        for i, f in enumerate(dem.force_callbacks):
+            try:
+                Fc, Tc = f(dem, t)
+                F = F + np.broadcast_to(np.asarray(Fc, dtype=float), (2, dem.n))
+                T = T + np.broadcast_to(np.asarray(Tc, dtype=float), (dem.n,))
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"force_callbacks[{i}]: must return (F, T) of shapes (2, "
+                                 f"{dem.n}) and ({dem.n},) (or broadcastable): {exc}") from None
         return F, T
 
     def _dem_predictor(self, dt, F_held, T_held):

@@ -69,7 +69,6 @@ def chord_converged(dn: float, prev: float, it: int, tol: float) -> bool:
     return dn <= tol or (rate < 0.5 and dn * rate / (1.0 - rate) <= tol)
 
 
-
 def chord_stalled(dn: float, prev: float | None, tol: float, patience: float = 3.0) -> bool:
     """Whether a chord iteration is too slow to go on: it diverges, or, at its current
     contraction rate ``dn / prev``, it would need more than ``patience`` further
@@ -86,4 +85,3 @@ def chord_stalled(dn: float, prev: float | None, tol: float, patience: float = 3
     if rate >= 1.0:
         return True
     return math.log(tol / dn) / math.log(max(rate, 1e-300)) > patience
-
