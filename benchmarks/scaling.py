@@ -163,7 +163,8 @@ def difference(after: dict, before: dict) -> dict:
     return {k: round(v - before.get(k, 0.0), 6) for k, v in after.items()}
 
 
-def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = False) -> dict:
+def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = False,
+             scene=None) -> dict:
     """Run one scaled collapse in this process; the record of :data:`RUN_KEYS` but the load.
 
     Parameters
@@ -182,12 +183,14 @@ def simulate(n: int, t_end: float, warmup: int, log=None, collect: bool = False)
         peak memory grew with the number of remeshes (25 grains, 50 ms, 17 remeshes: 1768
         MB resident at the end, 539 MB with the collections;
         ``results/scaling_no_gc.json``). Since then reference counting frees them.
+    scene : Scene, optional
+        Run this scene instead of :func:`scaled_scene` ``(n, t_end)`` (its own window).
     """
     from skfem_granular.simulation import Simulation
 
     time_refreshes()
     t0, c0 = time.perf_counter(), cpu_s()
-    sim = Simulation(scaled_scene(n, t_end))
+    sim = Simulation(scaled_scene(n, t_end) if scene is None else scene)
     v0, d0 = mesh_size(sim)
     steps = {"wall_s": [], "dofs": [], "contacts": [], "remeshes": [], "rss_mb": []}
     mark, t_mark, w_mark = None, 0.0, t0

@@ -1,0 +1,144 @@
+"""Scaling of contact-dominated flow: immersed column collapses of 25 to 1000 grains.
+
+:mod:`scaling` times blocks of grains that sediment before they touch; this benchmark
+times the flow that collapses, heaps and avalanches are made of. Each run is a dense
+column (:func:`skfem_granular.packing.prepare_column`: 12-gon near-disks, d_mean = 1 mm,
+d_max / d_min = 1.8, aspect 0.8, seed 0) released in water at ``t = 0``
+(:func:`skfem_granular.collapse.column_scene`, core ratio 0.9, the collapse
+experiment's default mesh and step of 0.2 ms): every grain touches its neighbours from
+the first step, so every step of the window is a contact step. The packings are kept in
+``results/packings/`` (prepared once; the 1000-grain one takes several minutes).
+
+Each run is a subprocess of its own (its ``ru_maxrss`` is its peak memory) and
+simulates :data:`WINDOW_STEPS` steps; the cost per simulated millisecond (wall and CPU)
+is taken after :data:`WARMUP` steps, with the DOFs, remeshes, factorisations, Jacobian
+refreshes and the fraction of steps with contacts. Growth exponents are least-squares
+slopes on log-log axes (:func:`scaling_report.fits`).
+
+Usage::
+
+    python benchmarks/scaling_contact.py                  # 25 100 400 1000 grains
+    python benchmarks/scaling_contact.py --n 25 100       # -> results/scaling_contact.json
+    python benchmarks/scaling_contact.py --steps 12 --n 25 --out /tmp/x.json   # quick look
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from scaling import commit_id, simulate
+from scaling_report import fit_exponent
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks/results"
+PACKINGS = RESULTS / "packings"
+
+GRAINS = (25, 100, 400, 1000)
+ASPECT = 0.8
+CORE_RATIO = 0.9
+DT = 2e-4
+#: Steps simulated per run, and the first of them counted as start-up.
+WINDOW_STEPS = 30
+WARMUP = 5
+
+
+def packing(n: int, seed: int = 0):
+    """The dense column of ``n`` grains (prepared once, then read from ``PACKINGS``)."""
+    from skfem_granular.packing import load_packing, prepare_column
+
+    path = PACKINGS / f"dense_a{ASPECT:g}_n{n}_seed{seed}.npz"
+    if path.exists():
+        return load_packing(path)
+    # the solid fraction is measured 2 d_max from the edges, or 0.5 d_max in the small columns
+    pk = prepare_column(n, ASPECT, "dense", seed=seed, margin=2.0 if n >= 100 else 0.5)
+    PACKINGS.mkdir(parents=True, exist_ok=True)
+    pk.save(path)
+    return pk
+
+
+def child(n: int, steps: int) -> dict:
+    """One collapse window in this process: the record of :func:`scaling.simulate`."""
+    from skfem_granular.collapse import column_scene
+
+    pk = packing(n)
+    scene = column_scene(pk, fluid=True, core_ratio=CORE_RATIO, t_end=steps * DT, dt=DT,
+                         name=f"collapse_contact_{n}")
+    rec = simulate(n, steps * DT, WARMUP, log=sys.stderr, scene=scene)
+    c = rec["per_step"]["contacts"]
+    rec["contact_step_fraction"] = sum(1 for k in c if k > 0) / max(len(c), 1)
+    rec["solid_fraction"] = pk.solid_fraction
+    rec["packing"] = {"n": pk.n, "aspect": pk.aspect, "state": pk.state}
+    return rec
+
+
+def run_child(n: int, steps: int) -> dict:
+    """:func:`child` in a fresh interpreter, with the load average around it."""
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", str(n), str(steps)]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        p for p in (str(ROOT), str(ROOT / "benchmarks"), os.environ.get("PYTHONPATH")) if p)}
+    load0 = list(os.getloadavg())
+    out = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, text=True, env=env)
+    rec = json.loads(out.stdout.strip().splitlines()[-1])
+    rec["loadavg_before"], rec["loadavg_after"] = load0, list(os.getloadavg())
+    return rec
+
+
+def fits(runs: list) -> dict:
+    """Growth exponents in the number of grains (and the solve cost in the DOFs)."""
+    if len(runs) < 2:
+        return {}
+    g = [r["grains"] for r in runs]
+    return {
+        "steady_cost_per_ms_vs_grains": fit_exponent(g, [r["steady_cost_per_ms_s"] for r in runs]),
+        "steady_cpu_per_ms_vs_grains": fit_exponent(g, [r["steady_cpu_per_ms_s"] for r in runs]),
+        "steady_cost_per_ms_vs_dofs": fit_exponent([r["dofs_mean"] for r in runs],
+                                                   [r["steady_cost_per_ms_s"] for r in runs]),
+        "dofs_vs_grains": fit_exponent(g, [r["dofs_mean"] for r in runs]),
+        "peak_mb_vs_grains": fit_exponent(g, [r["peak_mb"] for r in runs]),
+    }
+
+
+def table(data: dict) -> str:
+    """The runs as a plain-text table."""
+    rows = ["grains  dofs_mean  steps  contact%  remeshes  factor  refresh  "
+            "s/ms(wall)  s/ms(cpu)  peak_MB"]
+    for r in data["runs"]:
+        rows.append(f"{r['grains']:6d} {r['dofs_mean']:10.0f} {r['steps']:6d} "
+                    f"{100 * r['contact_step_fraction']:8.0f} {r['remeshes']:9d} "
+                    f"{r['steady_factorizations']:7d} {r['steady_jacobian_refreshes']:8d} "
+                    f"{r['steady_cost_per_ms_s']:11.2f} {r['steady_cpu_per_ms_s']:10.2f} "
+                    f"{r['peak_mb']:8.0f}")
+    return "\n".join(rows)
+
+
+def main(argv=None) -> dict | None:
+    """Command line (see the module docstring)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, nargs="+", default=list(GRAINS), help="grains per run")
+    ap.add_argument("--steps", type=int, default=WINDOW_STEPS, help="steps per run")
+    ap.add_argument("--out", type=Path, default=RESULTS / "scaling_contact.json")
+    ap.add_argument("--child", nargs=2, metavar=("N", "STEPS"), help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.child:
+        print(json.dumps(child(int(a.child[0]), int(a.child[1]))))
+        return None
+    data = {"benchmark": "scaling_contact", "commit": commit_id(), "cpus": os.cpu_count(),
+            "aspect": ASPECT, "core_ratio": CORE_RATIO, "dt": DT, "warmup_steps": WARMUP,
+            "runs": []}
+    for n in a.n:
+        data["runs"].append(run_child(n, a.steps))
+        data["fits"] = fits(data["runs"])
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        a.out.write_text(json.dumps(data, indent=1) + "\n")  # kept after every run
+        print(table(data), flush=True)
+    print(json.dumps(data["fits"], indent=1))
+    return data
+
+
+if __name__ == "__main__":
+    main()
