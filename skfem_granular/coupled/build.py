@@ -33,7 +33,8 @@ def build_mesh(scene, cores):
     if kind == "auto":
         kind = "graded" if len(cores) == 1 else "field"
     options = {"graded": {"sigma": m.sigma, "delta_l": m.delta_l},
-               "field": {"sigma": m.sigma, "delta_l": m.delta_l},
+               "field": {"sigma": m.sigma, "delta_l": m.delta_l,
+                         **({} if m.gap_spacing is None else {"gap_spacing": m.gap_spacing})},
                "uniform": {"h": m.h, "delta_l": m.delta_l},
                "group": {"h": m.h, "sigma": m.sigma, "delta_l": m.delta_l}}[kind]
     return meshing.build(kind, scene.domain, cores, **options)
