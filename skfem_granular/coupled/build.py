@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dem.polygon import polygon_area
 from ..fluid.space import TaylorHood
 
 
 def outline_areas(outlines) -> np.ndarray:
     """Areas ``(K,)`` of counter-clockwise outlines (shoelace formula)."""
-    return np.array([0.5 * float(np.sum(o[0] * np.roll(o[1], -1) - np.roll(o[0], -1) * o[1]))
-                     for o in outlines])
+    return np.array([polygon_area(o) for o in outlines])
 
 
 def outline_edge(outline: np.ndarray, delta_l: float | None) -> float:
