@@ -54,6 +54,12 @@ class Recipe:
         """
         return build(self.kind, self.domain, self.particles, **self.options)
 
+    def __repr__(self) -> str:
+        opts = ", ".join(f"{k}={v!r}" for k, v in self.options.items() if v is not None)
+        dom = self.domain if isinstance(self.domain, tuple) else "outline"
+        return (f"Recipe({self.kind!r}, domain={dom}, {len(self.particles)} particles"
+                + (f", {opts})" if opts else ")"))
+
 
 @dataclass(frozen=True, eq=False)
 class BodyFittedMesh:
@@ -91,6 +97,11 @@ class BodyFittedMesh:
     def __post_init__(self) -> None:
         object.__setattr__(self, "particle_nodes",
                            tuple(np.asarray(idx) for idx in self.particle_nodes))
+
+    def __repr__(self) -> str:
+        kind = "no recipe" if self.recipe is None else repr(self.recipe.kind)
+        return (f"BodyFittedMesh({kind}: {self.mesh.p.shape[1]} vertices, "
+                f"{self.mesh.t.shape[1]} triangles, {len(self.particle_nodes)} particles)")
 
 
 def mesh_of(mesh: object) -> Any:

@@ -188,6 +188,11 @@ class CoupledStepper:
         """Whether the mesh moves with the particles (:attr:`Scene.moving_mesh`)."""
         return self.scene.moving_mesh
 
+    def __repr__(self) -> str:
+        return (f"CoupledStepper({self.scene.coupling}, {'ALE' if self.ale else 'fixed'} mesh, "
+                f"t={self.state.t:.6g} s, {self.dem.n} particles, {self.space.N} unknowns, "
+                f"{self.remeshes} remeshes)")
+
     def _set_mesh(self, mesh, centers=None, angles=None):
         old = getattr(self, "coupling", None)
         if old is not None:  # keep the phase times and counts of the coupling being replaced

@@ -168,6 +168,11 @@ class DEMSystem:
         """Number of particles."""
         return self.particles.n
 
+    def __repr__(self) -> str:
+        contacts = 0 if self.contacts is None else int(self.contacts.i.size)
+        return (f"DEMSystem({self.n} particles, {self.walls.n} walls, t={self.t:.6g} s after "
+                f"{self.steps} steps of dt<={self.dt:.3g} s, {contacts} contacts)")
+
     @property
     def bodies(self) -> list[Body]:
         """Thin views on the particles."""

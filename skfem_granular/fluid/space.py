@@ -64,6 +64,10 @@ class TaylorHood:
         self.N = self.nu + self.np_
         self._viscous_forms = set()  # the viscous forms asked for (see K)
 
+    def __repr__(self) -> str:
+        return (f"TaylorHood(P2/P1 on {self.mesh.p.shape[1]} vertices, {self.mesh.t.shape[1]} "
+                f"triangles: {self.nu} velocity + {self.np_} pressure = {self.N} unknowns)")
+
     def __getattr__(self, name):
         # the scikit-fem bases are built only when something asks for them
         if name in ("ub", "pb", "sb") and "mesh" in self.__dict__:

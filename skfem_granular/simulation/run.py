@@ -221,6 +221,12 @@ class Simulation:
         return sim
 
     # ------------------------------------------------------------------ views
+    def __repr__(self) -> str:
+        kind = "dry" if self.scene.dry else repr(self.stepper).split("(", 1)[1].rstrip(")")
+        out = "no output" if self.output_dir is None else f"output {str(self.output_dir)!r}"
+        return (f"Simulation({self.scene.name!r}, t_end={self.scene.time.t_end:g} s: {kind}; "
+                f"{out})")
+
     def _coupled(self, name):
         if self.scene.dry:
             raise AttributeError(f"a dry scene has no {name}")
