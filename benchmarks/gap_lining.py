@@ -61,8 +61,9 @@ def core_drags(value, cores) -> tuple[list, np.ndarray]:
 
 def accuracy(spacings, force_reference: bool) -> dict:
     """Pore flux and core forces of the honeycomb for each spacing."""
-    import meshing
     from mesh_accuracy import BOX, honeycomb, line_fluxes
+
+    import meshing
 
     stored = json.loads((RESULTS / "mesh_accuracy.json").read_text())
     ref_flux = stored["results"][stored["reference"]]["pore_flux"]

@@ -66,8 +66,9 @@ def core_gaps(cores, domain, cutoff=None) -> tuple[np.ndarray, np.ndarray]:
     not with its square (25 cores in a dense column: 300 pairs measured at every
     step before, none with the cutoff of the landing check).
     """
-    import meshing.geometry as mg
     from scipy.spatial import cKDTree
+
+    import meshing.geometry as mg
 
     D, _ = mg.as_domain(domain)
     K = len(cores)
