@@ -1,4 +1,4 @@
-"""Accuracy against cost on a moving case: the settling disk of issue 14's check 2.
+"""Accuracy against cost on a moving case: the settling disk of the sedimentation checks.
 
 The scene is ``settling_disk_channel`` (Glowinski et al. 2001; Wan & Turek
 2006: a 2.5 mm disk, 1250 kg/m^3, released at rest in a closed 2 cm x 6 cm
