@@ -29,6 +29,15 @@ MAX_HEADER_BYTES = 16_000_000
 MAX_DEPTH = 64
 
 
+def _member(name: str) -> zipfile.ZipInfo:
+    """A stored member dated 1980-01-01: the same content gives the same file bytes
+    (a member dated by the clock made two equal checkpoints differ when their writes
+    fell into different seconds)."""
+    info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+    info.compress_type = zipfile.ZIP_STORED
+    return info
+
+
 def write(path, header: dict, arrays: dict[str, np.ndarray], *, fsync: bool = False) -> Path:
     """Write ``header`` (JSON) and ``arrays`` (``.npy`` members) as one zip, atomically."""
     text = json.dumps(header, allow_nan=False, separators=(",", ":")).encode()
@@ -38,9 +47,9 @@ def write(path, header: dict, arrays: dict[str, np.ndarray], *, fsync: bool = Fa
 
     def save(tmp):
         with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
-            zf.writestr(HEADER_MEMBER, text)
+            zf.writestr(_member(HEADER_MEMBER), text)
             for key, a in arrays.items():
-                with zf.open(f"{key}.npy", "w", force_zip64=True) as f:
+                with zf.open(_member(f"{key}.npy"), "w", force_zip64=True) as f:
                     np.lib.format.write_array(f, np.asanyarray(a), allow_pickle=False)
 
     return atomic_write(path, save, fsync=fsync)
