@@ -39,9 +39,10 @@ def build_mesh(scene, cores):
     return meshing.build(kind, scene.domain, cores, **options)
 
 
-def build_coupling(scene, mesh, dem, centers=None):
+def build_coupling(scene, mesh, dem, centers=None, terms=None):
     """The coupling object for ``mesh`` (a ``skfem.MeshTri``); ``centers`` (2, K): the
-    particles' reference positions on it (default: where the DEM holds them now)."""
+    particles' reference positions on it (default: where the DEM holds them now);
+    ``terms``: user forms of the fluid (:class:`~skfem_granular.fluid.UserTerms`)."""
     from .monolithic import MonolithicCoupling
     from .partitioned import PartitionedCoupling
 
@@ -51,4 +52,4 @@ def build_coupling(scene, mesh, dem, centers=None):
     centers = dem.positions.copy() if centers is None else np.array(centers, dtype=float)
     return cls(space, scene.fluid, walls, centers, dem.mass.copy(),
                dem.inertia.copy(), convection=scene.effects.convection,
-               rotation=scene.effects.rotation, imposed=dem.imposed.copy())
+               rotation=scene.effects.rotation, imposed=dem.imposed.copy(), terms=terms)
