@@ -32,7 +32,7 @@ function is the velocity). A mass source ``div u = s`` is the continuity form
 Every form is assembled with scikit-fem's ``asm`` on the current mesh (the moved mesh
 of an ALE step, at each iterate), with these entries of ``w``: ``w.x`` the quadrature
 points, ``w["t"]`` the time (the end of the step; 0 for a steady solve) and
-``w["u"]`` the current velocity (a ``DiscreteField``: ``w["u"].value``, ``.grad``).
+``w["u"]`` the current velocity (a ``DiscreteField``: ``w["u"][0]``, ``w["u"].grad``).
 Bilinear forms enter the system matrix and so the Newton Jacobian, with their
 coefficients frozen at the current iterate (a form whose coefficient reads ``w["u"]``
 is linearised in its trial function only: Picard for that term).
