@@ -119,6 +119,9 @@ class CoupledStepper:
     terms : UserTerms, optional
         User forms added to the fluid equations on every mesh
         (:class:`~skfem_granular.fluid.UserTerms`).
+    assembly : {"compiled", "scikit-fem"}
+        How the fluid's built-in blocks are assembled on every mesh
+        (:class:`~skfem_granular.fluid.TaylorHood`).
 
     Attributes
     ----------
@@ -132,9 +135,9 @@ class CoupledStepper:
     """
 
     def __init__(self, scene, dem, mesh, *, contacts_active: bool, timings=None,
-                 centers=None, angles=None, terms=None):
+                 centers=None, angles=None, terms=None, assembly="compiled"):
         self.scene = scene
-        self.terms = terms
+        self.terms, self.assembly = terms, assembly
         self.dem = dem
         self.contacts_active = bool(contacts_active)
         self.timings = {} if timings is None else timings
@@ -203,7 +206,7 @@ class CoupledStepper:
         dem = self.dem
         built = getattr(mesh, "mesh", mesh)
         self.coupling = build_coupling(self.scene, built, dem, centers=centers,
-                                       terms=self.terms)
+                                       terms=self.terms, assembly=self.assembly)
         self.reference_space = self.coupling.space
         self.mesh_centers = dem.positions.copy() if centers is None else np.array(centers)
         self.mesh_angles = dem.angles.copy() if angles is None else np.array(angles)

@@ -104,6 +104,10 @@ class Simulation:
         scikit-fem forms added to the fluid's momentum and continuity equations
         (:class:`~skfem_granular.fluid.UserTerms`, docs: user forms); a checkpoint does
         not hold them: give them again to :meth:`resume`.
+    assembly : {"compiled", "scikit-fem"}
+        How the fluid's built-in blocks are assembled: the compiled kernels (default)
+        or scikit-fem's ``asm`` of :mod:`skfem_granular.fluid.forms` (the same run to
+        round-off, slower; :class:`~skfem_granular.fluid.TaylorHood`).
 
     Examples
     --------
@@ -113,7 +117,7 @@ class Simulation:
     """
 
     def __init__(self, scene: Scene, output_dir=None, *, mesh=None, overwrite: bool = False,
-                 budget: Budget | None = None, terms=None):
+                 budget: Budget | None = None, terms=None, assembly: str = "compiled"):
         if not isinstance(scene, Scene):
             scene = Scene.from_toml(scene)
         self.scene = scene
@@ -161,7 +165,8 @@ class Simulation:
             self.timings["meshing"] += time.perf_counter() - t0
             self.stepper = CoupledStepper(scene, self.dem, mesh,
                                           contacts_active=self.contacts_active,
-                                          timings=self.timings, terms=terms)
+                                          timings=self.timings, terms=terms,
+                                          assembly=assembly)
 
     @classmethod
     def resume(cls, directory, t_end: float | None = None, *,
