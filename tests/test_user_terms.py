@@ -6,6 +6,8 @@
 - A space- and time-dependent body force (a ``LinearForm``) manufacturing
   ``u = g(t) (x^2, -2 x y)``, ``p = g(t) (x + y - 1)`` for the unsteady Navier-Stokes
   equations; P2/P1 hold that solution exactly, so the error left is BDF2's: order 2.
+- A mass source ``div u = 2 x`` through continuity forms (a LinearForm, and a
+  BilinearForm doubling the built-in divergence): a P2/P1 solution to round-off.
 """
 
 import numpy as np
@@ -155,3 +157,37 @@ def test_user_terms_bad_input():
         UserTerms(continuity=[LinearForm(lambda q, w: dot(q, q))])
     with pytest.raises(ValueError, match="terms: a skfem_granular.fluid.UserTerms"):
         solve_steady(channel(2), sg.Fluid(1.0, 1.0), {"left": (1, 0)}, terms=[brinkman_drag])
+
+
+# ------------------------------------------------------------------ continuity terms
+def test_mass_source_and_continuity_bilinear_form_exact():
+    """``div u = s`` through continuity forms in a channel with a do-nothing outlet:
+    ``u = (x^2, 0)`` (``s = 2 x``) and ``p = x - 1 + 2 mu`` (the outlet's
+    ``mu du/dn - p n = 0`` at ``x = 1``) lie in P2/P1, so the solve reproduces them to
+    round-off. The source alone (``g(q) = -(s, q)``), and the built-in ``-(q, div u)``
+    doubled by a user BilinearForm with the source doubled (the same equation), give that
+    solution. Momentum (Laplacian form): ``-mu lap u + grad p = (1 - 2 mu, 0)``, a
+    LinearForm too."""
+    from skfem.helpers import div
+
+    mu = 0.25
+    force = LinearForm(lambda v, w: (1 - 2 * mu) * v[0])
+    source = LinearForm(lambda q, w: -2.0 * w.x[0] * q)
+    double_source = LinearForm(lambda q, w: -4.0 * w.x[0] * q)
+    divergence = BilinearForm(lambda u, q, w: -div(u) * q)
+    exact_u = lambda x, y: (x**2, 0 * y)  # noqa: E731
+    for continuity in ([source], [divergence, double_source]):
+        flow = solve_steady(channel(4), sg.Fluid(1.0, mu),
+                            {"left": exact_u, "bottom": exact_u, "top": exact_u},
+                            terms=UserTerms(momentum=force, continuity=continuity))
+        loc = flow.space.velocity_doflocs
+        exact = np.where(flow.space.component == 0, loc[0] ** 2, 0.0)
+        assert np.abs(flow.u - exact).max() < 1e-12
+        p_exact = flow.space.pb.doflocs[0] - 1.0 + 2 * mu
+        assert np.abs(flow.p - p_exact).max() < 1e-11
+        assert flow.report.iterations == 2  # Newton: the first solve is exact
+    # without the source the flow cannot be that one (measured: 1.39 off)
+    flow = solve_steady(channel(4), sg.Fluid(1.0, mu),
+                        {"left": exact_u, "bottom": exact_u, "top": exact_u},
+                        terms=UserTerms(momentum=force))
+    assert np.abs(flow.u - exact).max() > 0.5
