@@ -191,3 +191,33 @@ def test_mass_source_and_continuity_bilinear_form_exact():
                         {"left": exact_u, "bottom": exact_u, "top": exact_u},
                         terms=UserTerms(momentum=force))
     assert np.abs(flow.u - exact).max() > 0.5
+
+
+# ------------------------------------------------- the built-in viscous term, split
+def test_user_viscous_term_on_a_moving_mesh_equals_the_compiled_one():
+    """Taylor-Green flow, Navier-Stokes by BDF2 on a mesh whose interior oscillates (ALE):
+    half the viscosity as a user BilinearForm (assembled on each moved mesh) gives the
+    compiled run with the whole viscosity (measured 9e-16 relative)."""
+    from skfem.helpers import ddot, sym_grad
+
+    nu = 0.1
+    mesh = MeshTri.init_tensor(np.linspace(0, np.pi, 7), np.linspace(0, np.pi, 7))
+    mesh = mesh.with_boundaries({"wall": lambda x: np.ones(x.shape[1], dtype=bool)})
+    p_ref = mesh.p
+    phi = np.sin(p_ref[0]) * np.sin(p_ref[1])
+
+    def motion(t):
+        return p_ref + 0.1 * np.sin(2 * np.pi * t) * np.array([1.0, 0.6])[:, None] * phi
+
+    def tg(x, y, t=0.0):
+        d = np.exp(-2 * nu * t)
+        return -np.cos(x) * np.sin(y) * d, np.sin(x) * np.cos(y) * d
+
+    viscous = BilinearForm(lambda u, v, w: (nu / 2) * 2.0 * ddot(sym_grad(u), sym_grad(v)))
+    runs = []
+    for eta, terms in ((nu, None), (nu / 2, UserTerms(momentum=[viscous]))):
+        for _, flow in evolve(mesh, sg.Fluid(1.0, eta), {"wall": tg}, dt=0.05, t_end=0.5,
+                              u0=tg, mesh_motion=motion, newton_tol=1e-12, terms=terms):
+            pass
+        runs.append(flow.u)
+    assert np.abs(runs[1] - runs[0]).max() <= 1e-10 * np.abs(runs[0]).max()

@@ -79,3 +79,15 @@ def test_user_body_force_pushes_the_particle_by_its_hydrostatic_pressure(scene, 
     v_weight = vy(scene, UserTerms(momentum=weight))
     rho_p, rho_f = scene.particles[0].density, scene.fluid.density  # 2650, 1000
     assert np.abs(v_weight / reference - (rho_p - 2 * rho_f) / (rho_p - rho_f)).max() < 1e-6
+
+
+def test_user_viscous_term_in_the_partitioned_coupling(scene):
+    """The paper's partitioned coupling, 0.1 ms: the same check as the monolithic one
+    (measured 4e-16 relative)."""
+    short = replace(scene, coupling="partitioned",
+                    time=TimeSpec(t_end=1e-4, dt=scene.time.dt))
+    eta = scene.fluid.viscosity
+    half = replace(short, fluid=Fluid(density=scene.fluid.density, viscosity=eta / 2))
+    viscous = BilinearForm(lambda u, v, w: (eta / 2) * 2.0 * ddot(sym_grad(u), sym_grad(v)))
+    reference = vy(short)
+    assert np.abs(vy(half, UserTerms(momentum=[viscous])) / reference - 1.0).max() < 1e-10
