@@ -278,7 +278,7 @@ class NavierStokesOperator:
         if N is not None:
             N.data *= self.fluid.density
             A = self._plus_convection(A, N)
-        return self.linear_matrix(A, x) if self.terms is not None else self.matrix(A)
+        return self.linear_matrix(A, x)
 
     def reduced_jacobian(self, x: np.ndarray, c_mass: float = 0.0,
                          newton: bool = True) -> sp.csr_matrix:
