@@ -40,16 +40,18 @@ def build_mesh(scene, cores):
     return meshing.build(kind, scene.domain, cores, **options)
 
 
-def build_coupling(scene, mesh, dem, centers=None):
+def build_coupling(scene, mesh, dem, centers=None, terms=None, assembly="compiled"):
     """The coupling object for ``mesh`` (a ``skfem.MeshTri``); ``centers`` (2, K): the
-    particles' reference positions on it (default: where the DEM holds them now)."""
+    particles' reference positions on it (default: where the DEM holds them now);
+    ``terms``: user forms of the fluid (:class:`~skfem_granular.fluid.UserTerms`);
+    ``assembly``: how the built-in blocks are assembled (:class:`TaylorHood`)."""
     from .monolithic import MonolithicCoupling
     from .partitioned import PartitionedCoupling
 
-    space = TaylorHood(mesh)
+    space = TaylorHood(mesh, assembly=assembly)
     walls = {"wall": (0.0, 0.0)}
     cls = MonolithicCoupling if scene.coupling == "monolithic" else PartitionedCoupling
     centers = dem.positions.copy() if centers is None else np.array(centers, dtype=float)
     return cls(space, scene.fluid, walls, centers, dem.mass.copy(),
                dem.inertia.copy(), convection=scene.effects.convection,
-               rotation=scene.effects.rotation, imposed=dem.imposed.copy())
+               rotation=scene.effects.rotation, imposed=dem.imposed.copy(), terms=terms)
