@@ -10,6 +10,7 @@ next to the mesh in a :class:`BodyFittedMesh`, never on it.
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -154,8 +155,9 @@ def build(kind: str, domain: object, particles: object, **options: Any) -> BodyF
     from .group import build_group
     from .uniform import build_uniform
 
-    builders = {"graded": build_graded, "uniform": build_uniform, "group": build_group,
-                "field": build_field}
+    builders: dict[str, Callable[..., BodyFittedMesh]] = {
+        "graded": build_graded, "uniform": build_uniform, "group": build_group,
+        "field": build_field}
     if not isinstance(kind, str) or kind not in builders:
         raise ValueError(f"kind: expected one of {', '.join(map(repr, KINDS))}, got {kind!r}")
     builder = builders[kind]

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import overlap_numba, pipeline
 from .broadphase import NeighbourList, circle_pairs, wall_pairs
@@ -139,7 +141,7 @@ class DEMSystem:
         self.inertia = p.inertia
         self.external_force = np.zeros((2, N))
         self.external_torque = np.zeros(N)
-        self.force_callbacks = []
+        self.force_callbacks: list[Callable[[DEMSystem, float], tuple[ArrayLike, ArrayLike]]] = []
         self.force = np.zeros((2, N))
         self.torque = np.zeros(N)
         self.t = 0.0
@@ -158,7 +160,8 @@ class DEMSystem:
 
     # ------------------------------------------------------------------ setup
     @classmethod
-    def in_box(cls, particles, box, wall_thickness: float, **kwargs) -> DEMSystem:
+    def in_box(cls, particles, box: tuple[float, float, float, float], wall_thickness: float,
+               **kwargs) -> DEMSystem:
         """System with :func:`~skfem_granular.dem.box_walls` around ``box = (x0, y0, x1, y1)``."""
         walls = box_walls(*box, wall_thickness) + list(kwargs.pop("walls", []))
         return cls(particles, walls, domain=box, **kwargs)

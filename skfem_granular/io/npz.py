@@ -120,7 +120,7 @@ def _read_header(zf: zipfile.ZipFile, where: str) -> dict:
 
 def _declared_arrays(header: dict, where: str) -> dict[str, tuple]:
     """``{key: (dtype, shape)}`` of the header's ``$array`` nodes; refuses a deep header."""
-    found = {}
+    found: dict[str, tuple] = {}
     todo = [(header, 0)]
     while todo:
         node, depth = todo.pop()
@@ -132,7 +132,9 @@ def _declared_arrays(header: dict, where: str) -> dict[str, tuple]:
             key, shape = node.get("$array"), node.get("shape")
             if isinstance(key, str) and isinstance(shape, list) and all(
                     isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in shape):
-                found.setdefault(key, (MEMORY_DTYPES.get(node.get("dtype")), tuple(shape)))
+                dtype = node.get("dtype")
+                found.setdefault(key, (MEMORY_DTYPES.get(dtype) if isinstance(dtype, str)
+                                       else None, tuple(shape)))
             todo.extend((x, depth + 1) for x in node.values())
     return found
 

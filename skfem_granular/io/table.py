@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -40,7 +41,7 @@ class Table:
 
     def __init__(self, n_particles: int):
         self.K = int(n_particles)
-        self.rows = []
+        self.rows: list[dict[str, Any]] = []
 
     def add_row(self, **values) -> None:
         """Append one step; missing step values are NaN, missing particle values 0."""
@@ -205,7 +206,7 @@ class CSVLog:
         self.written = len(table.rows)
         text = ",".join(table.wide_header()) + "\n" + table.wide_lines(0, self.written)
         atomic_write(self.path, lambda tmp: Path(tmp).write_text(text))
-        self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_APPEND)
 
     @property
     def closed(self) -> bool:

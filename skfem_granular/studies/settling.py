@@ -158,10 +158,10 @@ def execute(run: SettlingRun) -> dict:
 def fall_time(t, y, fall: float) -> float:
     """First time ``y`` is ``fall`` below ``y[0]`` (linear between samples; NaN if never)."""
     t, y = np.asarray(t, float), np.asarray(y, float)
-    k = np.flatnonzero(y <= y[0] - fall)
-    if k.size == 0:
+    below = np.flatnonzero(y <= y[0] - fall)
+    if below.size == 0:
         return float("nan")
-    k = int(k[0])
+    k = int(below[0])
     if k == 0:
         return float(t[0])
     y1 = y[0] - fall

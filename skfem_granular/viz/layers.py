@@ -210,7 +210,8 @@ def _streamlines(pv, surface, flow, box, density: int):
     if traced.n_points == 0:
         return pv.PolyData()
     # each seed has a forward and a backward piece, both starting at the seed
-    conn, pieces, k = np.asarray(traced.lines), {}, 0
+    conn, k = np.asarray(traced.lines), 0
+    pieces: dict[int, list[np.ndarray]] = {}
     for seed in np.asarray(traced.cell_data["SeedIds"]):
         n = conn[k]
         pieces.setdefault(int(seed), []).append(conn[k + 1 : k + 1 + n])
