@@ -29,6 +29,26 @@ def as_space(mesh_or_space) -> TaylorHood:
     return mesh_or_space if isinstance(mesh_or_space, TaylorHood) else TaylorHood(mesh_or_space)
 
 
+def _newton_or_continuation(space, fluid, velocity, initial, options: dict,
+                            t_start: float) -> Flow:
+    """Newton from ``initial``; if it fails, the path through larger viscosities
+    (:func:`~.continuation.viscosity_continuation`), recorded in ``flow.report``."""
+    try:
+        return solve_steady(space, fluid, velocity, True, initial=initial, continuation="off",
+                            **options)
+    except ConvergenceError:
+        pass
+
+    def stage(fl, start):  # from a close guess Newton needs few iterations, or fails
+        return solve_steady(space, fl, velocity, True, initial=start, continuation="off",
+                            **dict(options, maxiter=min(options["maxiter"], STAGE_MAXITER)))
+
+    flow, stages = viscosity_continuation(stage, fluid)
+    flow.report.continuation = stages
+    flow.report.wall_time["total"] = time.perf_counter() - t_start
+    return flow
+
+
 def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *,
                  body_force=None, viscous: str = "auto", solver="auto", tol: float = 1e-10,
                  maxiter: int = 25, initial: Flow | np.ndarray | None = None,
@@ -91,20 +111,7 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
     if convection and continuation == "auto":
         options = dict(body_force=body_force, viscous=viscous, solver=solver, tol=tol,
                        maxiter=maxiter, terms=terms)
-        try:
-            return solve_steady(space, fluid, velocity, True, initial=initial,
-                                continuation="off", **options)
-        except ConvergenceError:
-            pass
-
-        def stage(fl, start):  # from a close guess Newton needs few iterations, or fails
-            return solve_steady(space, fl, velocity, True, initial=start, continuation="off",
-                                **dict(options, maxiter=min(maxiter, STAGE_MAXITER)))
-
-        flow, stages = viscosity_continuation(stage, fluid)
-        flow.report.continuation = stages
-        flow.report.wall_time["total"] = time.perf_counter() - t_start
-        return flow
+        return _newton_or_continuation(space, fluid, velocity, initial, options, t_start)
     op = NavierStokesOperator(space, fluid, DirichletData(space, velocity), convection=convection,
                               viscous=viscous, body_force=body_force, terms=terms)
     times = {"setup": time.perf_counter() - t_start, "assembly": 0.0, "solve": 0.0}
