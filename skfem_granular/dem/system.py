@@ -48,7 +48,8 @@ class DEMSystem:
     gravity
         Gravitational acceleration ``(gx, gy)``.
     fluid_density
-        ``rho_f``: gravity acts as ``(rho_p - rho_f) A g`` (0 for dry scenes).
+        ``rho_f``: gravity acts as ``(rho_p A - rho_f A_core) g`` (0 for dry scenes):
+        the buoyancy of the core, the outline a fluid sees, as in coupled runs.
     domain
         Optional box ``(x0, y0, x1, y1)`` every particle must lie inside.
     dt
