@@ -409,3 +409,23 @@ def test_vertical_motion_on_mirror_symmetric_mesh_has_no_horizontal_force(convec
     # discretisation error: measured 1.1e-6 (Stokes), 1.7e-5 (Navier-Stokes) relative
     assert abs(Fu[0]) < 1e-4 * abs(Fu[1])
     assert Fu[1] == pytest.approx(F[1], rel=1e-3)
+
+
+def test_krylov_corrections_to_a_looser_tolerance():
+    """Newton corrections need not be solved to rtol (the loop evaluates the exact
+    residual): to ``correction_rtol`` (default 1e-4) the Re 100 annulus takes fewer
+    FGMRES iterations and the same Newton iterations, and lands on the same flow."""
+    mesh = annulus(1.0, 2.0, 32, 64, 25.0 / 32**2)
+    fluid = sg.Fluid(1.0, 0.01)
+    bc = {"inner": (1.0, 0.0), "outer": (0.0, 0.0)}
+    tight = sg.solve_steady(mesh, fluid, bc, convection=True,
+                            solver=KrylovSolver(correction_rtol=1e-10))
+    loose = sg.solve_steady(mesh, fluid, bc, convection=True, solver="krylov")
+    assert KrylovSolver().correction_rtol == linsolve.CORRECTION_RTOL == 1e-4
+    assert loose.report.iterations <= tight.report.iterations + 1
+    assert np.linalg.norm(loose.x - tight.x) < 1e-8 * np.linalg.norm(tight.x)
+    n_tight = sum(tight.report.solver["krylov_iterations"])
+    n_loose = sum(loose.report.solver["krylov_iterations"])
+    assert n_loose < 0.7 * n_tight, (n_loose, n_tight)
+    with pytest.raises(ValueError, match="correction_rtol"):
+        KrylovSolver(correction_rtol=0.0)

@@ -164,6 +164,14 @@ def _pardiso_cnr_iparm(solver) -> None:
     solver.iparm[33] = PARDISO_CNR_THREADS
 
 
+#: Relative tolerance of a Krylov correction inside an outer iteration (see KrylovSolver).
+#: Measured on a dense column of 100 grains in water (153,791 unknowns, 6 coupled steps,
+#: CPU): 141 s at 1e-10 (17-26 FGMRES iterations a correction), 78 s at 1e-6, 49 s at
+#: 1e-4 (2-10 iterations; 36 corrector iterations against 33), the grains' velocities
+#: the same to 1.4e-9 m/s (9e-8 of the largest).
+CORRECTION_RTOL = 1e-4
+
+
 class KrylovSolver(SaddlePointSolver):
     """FGMRES with a pyamg block-triangular preconditioner.
 
@@ -202,16 +210,22 @@ class KrylovSolver(SaddlePointSolver):
         of the system size).
     inner_rtol : float
         Relative tolerance of the inner velocity solve.
+    correction_rtol : float
+        Relative tolerance of :meth:`solve_correction`: a chord or Newton loop that
+        evaluates the exact residual needs its corrections only to a contraction well
+        below its own (0.01-0.3 per iteration), not to ``rtol``.
     """
 
     name = "krylov"
 
     def __init__(self, rtol: float = 1e-10, maxiter: int = 300, restart: int = 100,
-                 inner_rtol: float = 1e-2):
+                 inner_rtol: float = 1e-2, correction_rtol: float = CORRECTION_RTOL):
         super().__init__()
         from .._validate import positive
 
         self.rtol = positive("rtol", rtol)
+        self.correction_rtol = positive("correction_rtol", correction_rtol)
+        self._rtol_now = self.rtol
         self.inner_rtol = positive("inner_rtol", inner_rtol)
         if int(maxiter) < 1 or int(restart) < 1:
             raise ValueError(f"maxiter = {maxiter!r}, restart = {restart!r}: must be >= 1")
@@ -298,16 +312,25 @@ class KrylovSolver(SaddlePointSolver):
         restart = min(self.restart, self.maxiter, n)
         outer = -(-self.maxiter // restart)
         residuals = []
-        x, info = fgmres(self._A, b, M=M, tol=self.rtol, restart=restart, maxiter=outer,
+        rtol = self._rtol_now
+        x, info = fgmres(self._A, b, M=M, tol=rtol, restart=restart, maxiter=outer,
                          residuals=residuals)
         its = len(residuals) - 1
         self.stats.iterations.append(its)
         rel = np.linalg.norm(b - self._A @ x) / max(np.linalg.norm(b), 1e-300)
-        if info != 0 or not rel <= self.rtol * 10:
+        if info != 0 or not rel <= rtol * 10:
             raise ConvergenceError(f"Krylov solver: FGMRES stopped after {its} "
                                    f"iterations at relative residual {rel:.2e} > rtol "
-                                   f"{self.rtol:.0e}; use solver='superlu' or a larger maxiter")
+                                   f"{rtol:.0e}; use solver='superlu' or a larger maxiter")
         return x
+
+    def solve_correction(self, b: np.ndarray) -> np.ndarray:
+        """:meth:`solve` to ``correction_rtol`` (the outer loop corrects the rest)."""
+        self._rtol_now = self.correction_rtol
+        try:
+            return self.solve(b)
+        finally:
+            self._rtol_now = self.rtol
 
 
 SOLVERS = {"superlu": SuperLUSolver, "pardiso": PardisoSolver, "krylov": KrylovSolver}
