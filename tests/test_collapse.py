@@ -181,3 +181,24 @@ def test_realisations_give_mean_and_sample_spread():
     assert realisations([5.0])["std"] is None
     with pytest.raises(ValueError, match="one value per realisation"):
         realisations([])
+
+
+def test_dry_laws_published_coefficients():
+    """The laws as published: Lajeunesse et al. 2005 (quasi-2D channel) 1.2 a below
+    a = 2.3 and 1.9 a^(2/3) above; Kumar 2015 (2D DEM) 1.67 a below 2.7, 2.7 a^(2/3)
+    above; Zenit 2005 1.43 a^0.65; Staron & Hinch 1.3 a continued as a^(2/3) above 3."""
+    from skfem_granular.collapse import DRY_LAWS, dry_runout
+
+    a = np.array([0.5, 2.0, 2.5, 4.0])
+    assert np.allclose(dry_runout(a), [0.6, 2.4, 1.9 * 2.5 ** (2 / 3), 1.9 * 4 ** (2 / 3)],
+                       rtol=1e-15)
+    assert np.allclose(dry_runout(a, "Kumar 2015 (2D DEM)"),
+                       [0.835, 3.34, 4.175, 2.7 * 4 ** (2 / 3)], rtol=1e-15)
+    assert dry_runout(1.0, "Zenit 2005") == pytest.approx(1.43, rel=1e-15)
+    sh = dry_runout(np.array([3.0 - 1e-9, 3.0]), "Staron & Hinch 2005")
+    assert sh[1] == pytest.approx(sh[0], rel=1e-8)  # continuous at a = 3
+    assert set(DRY_LAWS) >= {"Lajeunesse et al. 2005", "Kumar 2015 (2D DEM)"}
+    with pytest.raises(ValueError, match="law = 'Lube'"):
+        dry_runout(1.0, "Lube")
+    with pytest.raises(ValueError, match="aspect ratio H0 / L0 must be finite and > 0"):
+        dry_runout(-1.0)
