@@ -15,6 +15,8 @@ kinetic energy falls below 1e-4 of its peak. The front is read three ways
 - ``gap``: the mass ends at a hole wider than the widest grain (the benchmark's rule);
 - ``contact``: the mass ends at the first hole at all (a tenth of ``d_min``: grains
   touching their neighbour along ``x``), so a grain rolling ahead does not count;
+- ``mass``: the farthest grain in contact with the main mass (grains connected through
+  contacts to the left wall; :func:`skfem_granular.collapse.mass_front`, Kumar 2015);
 - ``farthest``: the right end of the farthest grain;
 
 and at two stops: ``E1`` the first time after 3 tau_c that the kinetic energy is below
@@ -39,15 +41,17 @@ from skfem_granular.collapse import (
     FRICTION,
     dry_runout,
     front_position,
+    mass_front,
     realisations,
     tank_size,
     time_scale,
 )
 from skfem_granular.dem import ContactLaw, DEMSystem, Particle, Polygon
+from skfem_granular.dem.particles import pad_outlines
 from skfem_granular.packing import diameter_range, load_packing, prepare_column
 
 RESULTS = Path(__file__).resolve().parent / "results"
-FRONTS = ("gap", "contact", "farthest")
+FRONTS = ("gap", "contact", "mass", "farthest")
 
 
 def packing_for(n, aspect, shape, seed, cache: Path, E=1e6, margin=2.0):
@@ -72,6 +76,7 @@ def fronts(outlines, d_min):
     """The front read the three ways of :data:`FRONTS`."""
     return {"gap": front_position(outlines),
             "contact": front_position(outlines, gap=0.1 * d_min),
+            "mass": mass_front(outlines),
             "farthest": float(max(P[0].max() for P in outlines))}
 
 
@@ -87,26 +92,29 @@ def collapse(p, mu, rough, t_max_tau, chunk=1e-3):
     law = ContactLaw(E=p.E, mu=mu, gamma=0.5)
     dem = DEMSystem.in_box(grains, (0.0, 0.0, L, H + y0), p.d_max, law=law, walls=walls,
                            overlap_tolerance=max(1e-3, 1.5 * p.max_overlap))
-    peak, out, curve = 0.0, {}, []
+    peak, out, curve, k = 0.0, {}, [], 0
     while dem.t < t_max_tau * tau:
         dem.advance(chunk)
+        k += 1
         E = dem.kinetic_energy()
         peak = max(peak, E)
-        if dem.steps % 10 == 0 or "E1" not in out:
+        e1 = "E1" not in out and dem.t > 3.0 * tau and E < 1e-2 * peak
+        if k % 5 == 0 or e1:
             f = fronts(dem.shadow_outlines(), d_min)
-            curve.append([dem.t / tau] + [(f[k] - p.width) / p.width for k in FRONTS])
-        if "E1" not in out and dem.t > 3.0 * tau and E < 1e-2 * peak:
+            curve.append([dem.t / tau] + [(f[c] - p.width) / p.width for c in FRONTS])
+        if e1:
             out["E1"] = dict(f, t_over_tau=dem.t / tau)
         if dem.t > 3.0 * tau and E < 1e-4 * peak:
             break
-    f = fronts(dem.shadow_outlines(), d_min)
+    final = dem.shadow_outlines()
+    f = fronts(final, d_min)
     out["end"] = dict(f, t_over_tau=dem.t / tau, E_over_peak=E / peak)
     out.setdefault("E1", None)
     for stop in ("E1", "end"):
         if out[stop] is not None:
             for k in FRONTS:
                 out[stop][k] = (out[stop][k] - p.width) / p.width
-    return out, curve
+    return out, curve, final
 
 
 def summary(rows):
@@ -150,12 +158,15 @@ def main(argv=None):
                                    a.margin)
         for mu in a.mus:
             c0 = time.process_time()
-            res, curve = collapse(p, mu, a.rough, a.t_max)
+            res, curve, final = collapse(p, mu, a.rough, a.t_max)
+            V, counts = pad_outlines(final)
+            np.savez(Path(a.cache) / f"final_{tag}_s{seed}_mu{mu:.3g}.npz", vertices=V,
+                     counts=counts)
             row = {"n": a.n, "shape": a.shape, "seed": seed, "mu": mu, "rough": a.rough,
                    "aspect": p.aspect, "solid_fraction": p.solid_fraction, "L0": p.width,
                    "H0": p.height, "packing_cpu_s": cpu_pack,
                    "collapse_cpu_s": time.process_time() - c0, **res,
-                   "curve_t_gap_contact_farthest": curve[::5]}
+                   "curve_t_" + "_".join(FRONTS): curve[::5]}
             print(json.dumps({k: v for k, v in row.items() if not k.startswith("curve")}),
                   flush=True)
             rows.append(row)

@@ -49,6 +49,29 @@ def test_front_stops_at_a_gap_wider_than_a_grain():
     assert front_position(P, gap=2.0) == pytest.approx(8.0, rel=1e-15)
 
 
+def test_mass_front_counts_grains_in_contact_with_the_mass():
+    """Kumar's front (2015): the farthest grain touching the mass connected to the wall.
+    Squares of side 1 touching in a row from the wall reach x = 3; a square 0.05 ahead
+    (gap below one grain, so front_position counts it) does not; one touching it does;
+    a diamond whose bounding box overlaps the last square but whose outline stays 0.1
+    away along the diagonal does not (separating axes, not boxes)."""
+    from skfem_granular.collapse import mass_front
+
+    row = squares([0.0, 1.0, 2.0])
+    assert mass_front(row) == pytest.approx(3.0, rel=1e-15)
+    ahead = row + squares([3.05])
+    assert mass_front(ahead) == pytest.approx(3.0, rel=1e-15)
+    assert front_position(ahead) == pytest.approx(4.05, rel=1e-15)
+    bridge = ahead + squares([2.5], y=1.0)  # on the third square, touching the fourth
+    assert mass_front(bridge) == pytest.approx(4.05, rel=1e-15)
+    cx = 3.3  # diamond (half-diagonal 0.5) whose lower-left edge is 0.1 off (3, 1)
+    cy = 4.5 + 0.1 * np.sqrt(2) - cx
+    diamond = np.array([[cx, cx + 0.5, cx, cx - 0.5], [cy - 0.5, cy, cy + 0.5, cy]])
+    assert front_position(row + [diamond]) > 3.0  # its box overlaps the mass
+    assert mass_front(row + [diamond]) == pytest.approx(3.0, rel=1e-15)
+    assert mass_front(squares([0.5, 1.5])) == 0.0  # nothing touches the wall
+
+
 def test_profile_energies_froude_exact():
     P = squares([0.0, 2.0]) + squares([0.0], y=1.0) + [Polygon.regular(4, 1.0, (5.0, 1.0)).vertices]
     h = deposit_profile(P, [0.5, 1.5, 2.5, 4.5, 5.0, 5.25, 7.0])

@@ -23,6 +23,7 @@ from .measures import (
     height_at,
     kinetic_energies,
     local_outlines,
+    mass_front,
     masses,
     normalised_runout,
     realisations,
@@ -36,5 +37,5 @@ __all__ = ["DRY_LAWS", "FRICTION", "collapse_series", "column_scene", "column_to
            "dry_runout", "excess_pressure", "flow_pressure", "flowing_solid_fraction",
            "frame_pressure", "front_froude", "front_position", "grain_outlines", "height_at",
            "history_columns", "initial_column", "kinetic_energies", "line_points",
-           "local_outlines", "masses", "normalised_runout", "plots", "realisations",
+           "local_outlines", "mass_front", "masses", "normalised_runout", "plots", "realisations",
            "reference_point", "tank_size", "time_scale"]
