@@ -13,10 +13,8 @@ kinetic energy falls below 1e-4 of its peak. The front is read three ways
 (:func:`skfem_granular.collapse.front_position`):
 
 - ``gap``: the mass ends at a hole wider than the widest grain (the benchmark's rule);
-- ``contact``: the mass ends at the first hole at all (a tenth of ``d_min``: grains
-  touching their neighbour along ``x``), so a grain rolling ahead does not count;
-- ``mass``: the farthest grain in contact with the main mass (grains connected through
-  contacts to the left wall; :func:`skfem_granular.collapse.mass_front`, Kumar 2015);
+- ``mass``: the farthest grain in contact with the main mass (the largest group of
+  touching grains; :func:`skfem_granular.collapse.mass_front`, Kumar 2015);
 - ``farthest``: the right end of the farthest grain;
 
 and at two stops: ``E1`` the first time after 3 tau_c that the kinetic energy is below
@@ -51,7 +49,7 @@ from skfem_granular.dem.particles import pad_outlines
 from skfem_granular.packing import diameter_range, load_packing, prepare_column
 
 RESULTS = Path(__file__).resolve().parent / "results"
-FRONTS = ("gap", "contact", "mass", "farthest")
+FRONTS = ("gap", "mass", "farthest")
 
 
 def packing_for(n, aspect, shape, seed, cache: Path, E=1e6, margin=2.0):
@@ -75,7 +73,6 @@ def rough_floor(length, d):
 def fronts(outlines, d_min):
     """The front read the three ways of :data:`FRONTS`."""
     return {"gap": front_position(outlines),
-            "contact": front_position(outlines, gap=0.1 * d_min),
             "mass": mass_front(outlines),
             "farthest": float(max(P[0].max() for P in outlines))}
 
@@ -117,11 +114,29 @@ def collapse(p, mu, rough, t_max_tau, chunk=1e-3):
     return out, curve, final
 
 
+def refront(row, tag, cache: Path):
+    """``row`` with the end's mass front read again from its saved final outlines (the
+    current :func:`~skfem_granular.collapse.mass_front`); fronts not in :data:`FRONTS`
+    dropped. Without saved outlines the row keeps no mass front."""
+    for stop in ("E1", "end"):
+        if row[stop] is not None:
+            row[stop] = {k: v for k, v in row[stop].items() if k in FRONTS
+                         or k in ("t_over_tau", "E_over_peak")}
+            row[stop].pop("mass", None)
+    path = cache / f"final_{tag}_s{row['seed']}_mu{row['mu']:.3g}.npz"
+    if path.exists():
+        with np.load(path) as z:
+            final = [z["vertices"][k, : z["counts"][k]].T for k in range(len(z["counts"]))]
+        row["end"]["mass"] = (mass_front(final) - row["L0"]) / row["L0"]
+    return row
+
+
 def summary(rows):
     """Mean and spread over seeds per (shape, mu, rough), front and stop."""
     groups = {}
     for r in rows:
-        groups.setdefault(f"{r['shape']} mu={r['mu']:.3g} rough={r['rough']}", []).append(r)
+        key = f"{r['shape']} n={r['n']} mu={r['mu']:.3g} rough={r['rough']}"
+        groups.setdefault(key, []).append(r)
     out = {}
     for key, rs in groups.items():
         a = float(np.mean([r["aspect"] for r in rs]))
@@ -130,7 +145,8 @@ def summary(rows):
         for stop in ("E1", "end"):
             ok = [r for r in rs if r[stop] is not None]
             if ok:
-                s[stop] = {k: realisations([r[stop][k] for r in ok]) for k in FRONTS}
+                s[stop] = {k: realisations([r[stop][k] for r in ok]) for k in FRONTS
+                           if all(k in r[stop] for r in ok)}
         out[key] = s
     return out
 
@@ -149,7 +165,16 @@ def main(argv=None):
     ap.add_argument("--t-max", type=float, default=20.0)
     ap.add_argument("--cache", default="/tmp/collapse_packings")
     ap.add_argument("--tag", default=None)
+    ap.add_argument("--merge", nargs="+", default=None, metavar="TAG",
+                    help="only merge the runs of these tags into collapse_factors_<tag>.json")
     a = ap.parse_args(argv)
+    if a.merge:
+        rows = [refront(r, t, Path(a.cache)) for t in a.merge for r in json.loads(
+            (RESULTS / f"collapse_factors_{t}.json").read_text())["runs"]]
+        out = {"benchmark": "collapse_factors", "merged": a.merge, "summary": summary(rows),
+               "runs": rows}
+        (RESULTS / f"collapse_factors_{a.tag}.json").write_text(json.dumps(out, indent=1))
+        return
     tag = a.tag or f"{a.shape}_n{a.n}_a{a.aspect:g}"
     path = RESULTS / f"collapse_factors_{tag}.json"
     rows = []

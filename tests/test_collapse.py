@@ -50,11 +50,12 @@ def test_front_stops_at_a_gap_wider_than_a_grain():
 
 
 def test_mass_front_counts_grains_in_contact_with_the_mass():
-    """Kumar's front (2015): the farthest grain touching the mass connected to the wall.
-    Squares of side 1 touching in a row from the wall reach x = 3; a square 0.05 ahead
-    (gap below one grain, so front_position counts it) does not; one touching it does;
-    a diamond whose bounding box overlaps the last square but whose outline stays 0.1
-    away along the diagonal does not (separating axes, not boxes)."""
+    """Kumar's front (2015): the farthest grain touching the main mass (the largest group
+    of touching grains). Squares of side 1 touching in a row reach x = 3; a square 0.05
+    ahead (a gap below one grain, so front_position counts it) does not; one touching it
+    does; a diamond whose bounding box overlaps the last square but whose outline stays
+    0.1 away along the diagonal does not (separating axes, not boxes); a pair of squares
+    at the wall apart from a row of four is not the main mass."""
     from skfem_granular.collapse import mass_front
 
     row = squares([0.0, 1.0, 2.0])
@@ -69,7 +70,8 @@ def test_mass_front_counts_grains_in_contact_with_the_mass():
     diamond = np.array([[cx, cx + 0.5, cx, cx - 0.5], [cy - 0.5, cy, cy + 0.5, cy]])
     assert front_position(row + [diamond]) > 3.0  # its box overlaps the mass
     assert mass_front(row + [diamond]) == pytest.approx(3.0, rel=1e-15)
-    assert mass_front(squares([0.5, 1.5])) == 0.0  # nothing touches the wall
+    split = squares([0.0, 1.0]) + squares([2.2, 3.2, 4.2, 5.2])
+    assert mass_front(split) == pytest.approx(6.2, rel=1e-15)
 
 
 def test_profile_energies_froude_exact():

@@ -7,7 +7,7 @@ normalise with the packing's ``L0``, ``H0`` and ``tau_c = sqrt(H0 / g)``.
 - :func:`front_position`: the run-out ``L(t)``: the right end of the grains connected
   to the left wall (gaps wider than ``gap`` cut off grains thrown ahead);
 - :func:`mass_front`: the deposit's front: the farthest grain in contact with the
-  main mass (grains touching, grain to grain, the left wall);
+  main mass (the largest group of grains touching each other);
 - :func:`deposit_profile`, :func:`height_at`: the free surface ``h(x)`` (the upper
   boundary of the grains);
 - :func:`kinetic_energies`: horizontal, vertical and rotational kinetic energy;
@@ -82,22 +82,19 @@ def _separation(P: np.ndarray, Q: np.ndarray) -> float:
     return gap
 
 
-def mass_front(outlines, x_wall: float = 0.0, tol: float | None = None) -> float:
+def mass_front(outlines, tol: float | None = None) -> float:
     """Right end of the grains in contact with the main mass (the deposit's front).
 
-    The main mass is the set of grains connected, grain to grain through contacts,
-    to a grain touching the wall at ``x_wall``; a grain counts when it touches one of
-    them (separating-axis gap below ``tol``). This is Kumar's (2015, PhD thesis,
-    Cambridge, ch. 4) run-out of 2D DEM collapses, "the farthest grain which has at
-    least one contact with the main mass": grains rolling ahead alone do not count,
-    nor does a grain that stopped a hair's breadth from the deposit.
+    Grains touching each other (separating-axis gap below ``tol``) form groups; the
+    main mass is the largest group by area, and the front is its rightmost point.
+    This is Kumar's (2015, PhD thesis, Cambridge, ch. 4) run-out of 2D DEM collapses,
+    "the farthest grain which has at least one contact with the main mass": grains
+    rolling ahead alone, or resting on the floor a hair's breadth apart, do not count.
 
     Parameters
     ----------
     outlines : sequence of (2, k) arrays
         Convex, counter-clockwise grain outlines.
-    x_wall : float
-        The left wall.
     tol : float, optional
         Largest gap still counted as a contact (default: 1 % of the smallest grain's
         width; grains at rest overlap, by the soft contact law).
@@ -120,9 +117,12 @@ def mass_front(outlines, x_wall: float = 0.0, tol: float | None = None) -> float
     for i, j in zip(*np.nonzero(np.triu(near, 1)), strict=True):
         if root(i) != root(j) and _separation(P[i], P[j]) <= tol:
             parent[root(i)] = root(j)
-    walled = {root(k) for k in np.nonzero(lo[:, 0] <= x_wall + tol)[0]}
-    mass = [k for k in range(len(P)) if root(k) in walled]
-    return float(hi[mass, 0].max()) if mass else float(x_wall)
+    roots = np.array([root(k) for k in range(len(P))])
+    area = np.array([0.5 * float(np.dot(p[0], np.roll(p[1], -1))
+                                 - np.dot(np.roll(p[0], -1), p[1])) for p in P])
+    groups = np.unique(roots)
+    main = groups[np.argmax([area[roots == g].sum() for g in groups])]
+    return float(hi[roots == main, 0].max())
 
 
 def _top(P: np.ndarray, x: np.ndarray) -> np.ndarray:
