@@ -11,7 +11,10 @@ damping 0.5) and released; the run stops when the grains' kinetic energy has fal
 below 1e-2 of its peak, or below 5e-2 of it with a front that has moved less than
 0.005 L0 over the last tau_c (after at least 3 tau_c), or at 12 tau_c. The final run-out
 ``(L_inf - L0) / L0`` (front: right end of the grains connected to the wall) is
-compared with the laws of :mod:`skfem_granular.collapse.laws`. Writes
+compared with the laws of :mod:`skfem_granular.collapse.laws`. This is the first
+comparison's rule, kept for its results; a run to rest with the deposit's front read
+as the published 2D DEM study reads it is :func:`skfem_granular.collapse.run_dry`
+(``benchmarks/collapse_factors.py`` compares the two, docs/collapse.md). Writes
 ``benchmarks/results/collapse_dry_<tag>.json``: every run, and per aspect the mean and
 spread (sample standard deviation, min, max) over the seeds.
 """

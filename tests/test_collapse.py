@@ -49,6 +49,31 @@ def test_front_stops_at_a_gap_wider_than_a_grain():
     assert front_position(P, gap=2.0) == pytest.approx(8.0, rel=1e-15)
 
 
+def test_mass_front_counts_grains_in_contact_with_the_mass():
+    """Kumar's front (2015): the farthest grain touching the main mass (the largest group
+    of touching grains). Squares of side 1 touching in a row reach x = 3; a square 0.05
+    ahead (a gap below one grain, so front_position counts it) does not; one touching it
+    does; a diamond whose bounding box overlaps the last square but whose outline stays
+    0.1 away along the diagonal does not (separating axes, not boxes); a pair of squares
+    at the wall apart from a row of four is not the main mass."""
+    from skfem_granular.collapse import mass_front
+
+    row = squares([0.0, 1.0, 2.0])
+    assert mass_front(row) == pytest.approx(3.0, rel=1e-15)
+    ahead = row + squares([3.05])
+    assert mass_front(ahead) == pytest.approx(3.0, rel=1e-15)
+    assert front_position(ahead) == pytest.approx(4.05, rel=1e-15)
+    bridge = ahead + squares([2.5], y=1.0)  # on the third square, touching the fourth
+    assert mass_front(bridge) == pytest.approx(4.05, rel=1e-15)
+    cx = 3.3  # diamond (half-diagonal 0.5) whose lower-left edge is 0.1 off (3, 1)
+    cy = 4.5 + 0.1 * np.sqrt(2) - cx
+    diamond = np.array([[cx, cx + 0.5, cx, cx - 0.5], [cy - 0.5, cy, cy + 0.5, cy]])
+    assert front_position(row + [diamond]) > 3.0  # its box overlaps the mass
+    assert mass_front(row + [diamond]) == pytest.approx(3.0, rel=1e-15)
+    split = squares([0.0, 1.0]) + squares([2.2, 3.2, 4.2, 5.2])
+    assert mass_front(split) == pytest.approx(6.2, rel=1e-15)
+
+
 def test_profile_energies_froude_exact():
     P = squares([0.0, 2.0]) + squares([0.0], y=1.0) + [Polygon.regular(4, 1.0, (5.0, 1.0)).vertices]
     h = deposit_profile(P, [0.5, 1.5, 2.5, 4.5, 5.0, 5.25, 7.0])
@@ -181,3 +206,24 @@ def test_realisations_give_mean_and_sample_spread():
     assert realisations([5.0])["std"] is None
     with pytest.raises(ValueError, match="one value per realisation"):
         realisations([])
+
+
+def test_dry_laws_published_coefficients():
+    """The laws as published: Lajeunesse et al. 2005 (quasi-2D channel) 1.2 a below
+    a = 2.3 and 1.9 a^(2/3) above; Kumar 2015 (2D DEM) 1.67 a below 2.7, 2.7 a^(2/3)
+    above; Zenit 2005 1.43 a^0.65; Staron & Hinch 1.3 a continued as a^(2/3) above 3."""
+    from skfem_granular.collapse import DRY_LAWS, dry_runout
+
+    a = np.array([0.5, 2.0, 2.5, 4.0])
+    assert np.allclose(dry_runout(a), [0.6, 2.4, 1.9 * 2.5 ** (2 / 3), 1.9 * 4 ** (2 / 3)],
+                       rtol=1e-15)
+    assert np.allclose(dry_runout(a, "Kumar 2015 (2D DEM)"),
+                       [0.835, 3.34, 4.175, 2.7 * 4 ** (2 / 3)], rtol=1e-15)
+    assert dry_runout(1.0, "Zenit 2005") == pytest.approx(1.43, rel=1e-15)
+    sh = dry_runout(np.array([3.0 - 1e-9, 3.0]), "Staron & Hinch 2005")
+    assert sh[1] == pytest.approx(sh[0], rel=1e-8)  # continuous at a = 3
+    assert set(DRY_LAWS) >= {"Lajeunesse et al. 2005", "Kumar 2015 (2D DEM)"}
+    with pytest.raises(ValueError, match="law = 'Lube'"):
+        dry_runout(1.0, "Lube")
+    with pytest.raises(ValueError, match="aspect ratio H0 / L0 must be finite and > 0"):
+        dry_runout(-1.0)

@@ -6,6 +6,8 @@ normalise with the packing's ``L0``, ``H0`` and ``tau_c = sqrt(H0 / g)``.
 
 - :func:`front_position`: the run-out ``L(t)``: the right end of the grains connected
   to the left wall (gaps wider than ``gap`` cut off grains thrown ahead);
+- :func:`mass_front`: the deposit's front: the farthest grain in contact with the
+  main mass (the largest group of grains touching each other);
 - :func:`deposit_profile`, :func:`height_at`: the free surface ``h(x)`` (the upper
   boundary of the grains);
 - :func:`kinetic_energies`: horizontal, vertical and rotational kinetic energy;
@@ -23,7 +25,7 @@ from ..packing import Packing
 
 __all__ = ["deposit_profile", "flowing_solid_fraction", "front_froude", "front_position",
            "grain_outlines", "height_at", "kinetic_energies", "local_outlines", "masses",
-           "normalised_runout", "realisations"]
+           "mass_front", "normalised_runout", "realisations"]
 
 
 def local_outlines(packing: Packing) -> tuple[list[np.ndarray], np.ndarray]:
@@ -67,6 +69,60 @@ def front_position(outlines, x_wall: float = 0.0, gap: float | None = None) -> f
             break
         end = max(end, hi[k])
     return float(end)
+
+
+def _separation(P: np.ndarray, Q: np.ndarray) -> float:
+    """Largest gap between convex outlines ``P`` and ``Q`` along their edge normals
+    (separating axes): ``> 0`` apart, ``<= 0`` touching or overlapping."""
+    gap = -np.inf
+    for A, B in ((P, Q), (Q, P)):
+        e = np.roll(A, -1, axis=1) - A
+        n = np.vstack([e[1], -e[0]]) / np.hypot(e[0], e[1])  # outward (counter-clockwise)
+        gap = max(gap, float(((n.T @ B).min(axis=1) - (n.T @ A).max(axis=1)).max()))
+    return gap
+
+
+def mass_front(outlines, tol: float | None = None) -> float:
+    """Right end of the grains in contact with the main mass (the deposit's front).
+
+    Grains touching each other (separating-axis gap below ``tol``) form groups; the
+    main mass is the largest group by area, and the front is its rightmost point.
+    This is Kumar's (2015, PhD thesis, Cambridge, ch. 4) run-out of 2D DEM collapses,
+    "the farthest grain which has at least one contact with the main mass": grains
+    rolling ahead alone, or resting on the floor a hair's breadth apart, do not count.
+
+    Parameters
+    ----------
+    outlines : sequence of (2, k) arrays
+        Convex, counter-clockwise grain outlines.
+    tol : float, optional
+        Largest gap still counted as a contact (default: 1 % of the smallest grain's
+        width; grains at rest overlap, by the soft contact law).
+    """
+    P = [np.asarray(p, dtype=float) for p in outlines]
+    lo = np.array([[p[0].min(), p[1].min()] for p in P])
+    hi = np.array([[p[0].max(), p[1].max()] for p in P])
+    if tol is None:
+        tol = 0.01 * float((hi - lo)[:, 0].min())
+    near = np.all((lo[:, None, :] <= hi[None, :, :] + tol)
+                  & (lo[None, :, :] <= hi[:, None, :] + tol), axis=2)
+    parent = list(range(len(P)))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i, j in zip(*np.nonzero(np.triu(near, 1)), strict=True):
+        if root(i) != root(j) and _separation(P[i], P[j]) <= tol:
+            parent[root(i)] = root(j)
+    roots = np.array([root(k) for k in range(len(P))])
+    area = np.array([0.5 * float(np.dot(p[0], np.roll(p[1], -1))
+                                 - np.dot(np.roll(p[0], -1), p[1])) for p in P])
+    groups = np.unique(roots)
+    main = groups[np.argmax([area[roots == g].sum() for g in groups])]
+    return float(hi[roots == main, 0].max())
 
 
 def _top(P: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ def tank_size(packing: Packing) -> tuple[float, float]:
     """A tank ``(length, height)`` with room for the run-out.
 
     Length ``L0 (2 + a + 3 a^(2/3))``: more than twice the dry run-out of the
-    published laws (``L_inf / L0 ~ 1 + 1.2 a`` below a ~ 3, ``1 + 1.9 a^(2/3)`` above);
+    published laws (``L_inf / L0 ~ 1 + 1.2 a`` below a ~ 2.3, ``1 + 1.9 a^(2/3)`` above);
     height ``H0`` plus the larger of ``H0 / 2`` and 10 ``d_max``.
     """
     a, L0, H0 = packing.aspect, packing.width, packing.height
