@@ -1,0 +1,173 @@
+"""Loose against dense, dry against immersed: the collapse matrix over core ratios and seeds.
+
+Usage::
+
+    python benchmarks/collapse_matrix.py --smoke            # 30 grains, 4 ms: the pipeline
+    python benchmarks/collapse_matrix.py                    # 200 grains, a = 0.8, 8 tau_c
+    python benchmarks/collapse_matrix.py --cores 0.8 --seeds 0 --media immersed
+
+Every run is a column of ``--n`` grains (:func:`skfem_granular.packing.prepare_column`,
+12-gon near-disks, d_max / d_min = 1.8, aspect 0.8; the packings are kept in
+``results/packings/``) released behind its gate (:func:`skfem_granular.collapse.column_scene`)
+dry or in water, the immersed runs at each core ratio (the dry ones need none). A run
+writes its output folder ``out/collapse_matrix/<run>`` with a checkpoint every
+``--checkpoint-every`` steps: a run cut off is continued where its checkpoint stands the
+next time this script is started (:meth:`Simulation.resume`), a finished one is read
+back, not run again. Per run the JSON records the cost (CPU, wall, DOFs, steps) and the
+run-out series (:func:`skfem_granular.collapse.collapse_series`); per set-up
+(state, medium, core ratio) the final run-out (the deposit's mass front,
+:func:`skfem_granular.collapse.mass_front`), the largest front Froude number and the
+time to 90 % of the final run-out as mean and spread over the seeds
+(:func:`skfem_granular.collapse.realisations`). Results:
+``benchmarks/results/collapse_matrix_<tag>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks/results"
+ASPECT = 0.8
+
+
+def packing(n: int, state: str, seed: int):
+    """The column (prepared once, then read from ``results/packings/``)."""
+    from skfem_granular.packing import load_packing, prepare_column
+
+    path = RESULTS / "packings" / f"{state}_a{ASPECT:g}_n{n}_seed{seed}.npz"
+    if path.exists():
+        return load_packing(path)
+    pk = prepare_column(n, ASPECT, state, seed=seed, margin=2.0 if n >= 100 else 0.5)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pk.save(path)
+    return pk
+
+
+def completed(folder: Path) -> bool:
+    """Whether the run in ``folder`` reached its end (its summary says so)."""
+    path = folder / "summary.json"
+    return path.exists() and json.loads(path.read_text()).get("status") == "completed"
+
+
+def simulation(pk, medium: str, core: float, t_end: float, folder: Path, every: int):
+    """A new run into ``folder``, or the run continued from its checkpoint there."""
+    from skfem_granular.collapse import column_scene
+    from skfem_granular.simulation import Simulation
+
+    if (folder / "checkpoint.npz").exists():
+        return Simulation.resume(folder)
+    scene = column_scene(pk, fluid=medium == "immersed", core_ratio=core, t_end=t_end,
+                         name=folder.name, output_dir=str(folder), vtu_every=250)
+    return Simulation(replace(scene, checkpoint_every=every), overwrite=True)
+
+
+def measure(pk, folder: Path, domain) -> dict:
+    """Run-out series and the final deposit of a finished run, from its files."""
+    from skfem_granular.collapse import (
+        collapse_series,
+        grain_outlines,
+        history_columns,
+        local_outlines,
+        mass_front,
+    )
+
+    cols = history_columns(folder / "history.csv")
+    s = collapse_series(cols, pk, domain)
+    local, _ = local_outlines(pk)
+    final = grain_outlines(local, cols["x"][-1], cols["y"][-1], cols["angle"][-1])
+    L_end = mass_front([P - np.array([[domain[0]], [domain[1]]]) for P in final])
+    r_end = (L_end - pk.width) / pk.width
+    reach = s["runout"] >= 0.9 * r_end
+    return {"final_runout_mass_front": float(r_end),
+            "final_runout_gap_front": float(s["runout"][-1]),
+            "froude_max": float(np.nanmax(s["froude"])),
+            "t90_over_tau": float(s["t_over_tau"][np.argmax(reach)]) if reach.any() else None,
+            "series": {k: np.asarray(s[k]).tolist()
+                       for k in ("t_over_tau", "runout", "E_x", "E_y", "froude")}}
+
+
+def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict:
+    from skfem_granular.collapse import time_scale
+
+    pk = packing(n, state, seed)
+    tag = f"{state}_{medium}" + (f"_core{core:g}" if medium == "immersed" else "") + f"_s{seed}"
+    folder = root / tag
+    c0, w0, dofs = time.process_time(), time.perf_counter(), []
+    if completed(folder):
+        from skfem_granular.collapse import column_scene
+
+        domain = column_scene(pk, fluid=False).domain
+    else:
+        sim = simulation(pk, medium, core, tau_end * time_scale(pk), folder, every)
+        domain = sim.scene.domain
+        for _ in sim.evolve(progress=False):
+            if medium == "immersed":
+                dofs.append(int(sim.space.N))
+    rec = {"run": tag, "state": state, "medium": medium, "core_ratio": core, "seed": seed,
+           "grains": pk.n, "solid_fraction": pk.solid_fraction, "tau_c": time_scale(pk),
+           "cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0,
+           "dofs_mean": float(np.mean(dofs)) if dofs else None}
+    rec.update(measure(pk, folder, domain))
+    return rec
+
+
+def summarise(runs: list) -> list:
+    from skfem_granular.collapse import realisations
+
+    groups: dict = {}
+    for r in runs:
+        groups.setdefault((r["state"], r["medium"], r["core_ratio"]), []).append(r)
+    out = []
+    for (state, medium, core), rs in sorted(groups.items(), key=lambda kv: str(kv[0])):
+        row = {"state": state, "medium": medium, "core_ratio": core,
+               "seeds": [r["seed"] for r in rs]}
+        for key in ("final_runout_mass_front", "froude_max", "t90_over_tau", "cpu_s",
+                    "solid_fraction"):
+            vals = [r[key] for r in rs if r[key] is not None]
+            row[key] = realisations(vals) if vals else None
+        out.append(row)
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=200)
+    ap.add_argument("--states", nargs="+", default=["dense", "loose"])
+    ap.add_argument("--media", nargs="+", default=["dry", "immersed"])
+    ap.add_argument("--cores", type=float, nargs="+", default=[0.7, 0.8, 0.9, 0.95])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--tau", type=float, default=8.0, help="run length in tau_c")
+    ap.add_argument("--checkpoint-every", type=int, default=200)
+    ap.add_argument("--tag", default=None)
+    ap.add_argument("--smoke", action="store_true", help="30 grains, 0.1 tau_c, seed 0")
+    a = ap.parse_args(argv)
+    if a.smoke:
+        a.n, a.seeds, a.tau, a.cores, a.checkpoint_every = 30, [0], 0.1, [0.8], 10
+    tag = a.tag or ("smoke" if a.smoke else f"n{a.n}")
+    root = ROOT / "out" / f"collapse_matrix_{tag}"
+    out = RESULTS / f"collapse_matrix_{tag}.json"
+    runs = []
+    for seed in a.seeds:
+        for state in a.states:
+            for medium in a.media:
+                for core in (a.cores if medium == "immersed" else [1.0]):
+                    runs.append(one(a.n, state, medium, core, seed, a.tau, root,
+                                    a.checkpoint_every))
+                    print(json.dumps({k: v for k, v in runs[-1].items() if k != "series"}),
+                          flush=True)
+                    out.write_text(json.dumps({"benchmark": "collapse_matrix", "aspect": ASPECT,
+                                               "cpus": os.cpu_count(), "runs": runs,
+                                               "summary": summarise(runs)}, indent=1) + "\n")
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
