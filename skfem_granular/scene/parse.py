@@ -223,7 +223,7 @@ def scene_kwargs(data: dict, base=None) -> dict:
     if "contacts" in data or column is not None:
         kw["contact_law"] = _contact_law(data.get("contacts", {}), column)
     if "mesh" in data:
-        check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h"})
+        check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h", "wake"})
         kw["mesh"] = MeshSpec(**data["mesh"])
     if "time" in data:
         check_keys("time", data["time"], {"t_end", "dt", "dem_dt", "adaptive", "tol", "dt_min"})

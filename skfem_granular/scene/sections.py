@@ -59,12 +59,18 @@ class MeshSpec:
     ``kind``: ``"auto"`` (default: ``"graded"`` concentric circles for one
     particle, the ``"field"`` size-field mesh for more), ``"graded"``,
     ``"field"``, ``"uniform"`` or ``"group"`` (the paper's Fig. 13).
+
+    ``wake`` (default true): a ``"graded"`` mesh with the default ``sigma`` is
+    remeshed with finer circles while a particle's Reynolds number is above 30
+    (:class:`~skfem_granular.coupled.wake.WakeGrading`; quiet flows keep the
+    paper's mesh bit for bit); false keeps the paper's circles at every speed.
     """
 
     kind: str = "auto"
     delta_l: float | None = None
     sigma: float | None = None
     h: float | None = None
+    wake: bool = True
 
     def __post_init__(self):
         if self.kind not in MESH_KINDS:
@@ -76,6 +82,8 @@ class MeshSpec:
         object.__setattr__(self, "h", num("mesh", "h", self.h, lo=0, allow_none=True))
         if self.sigma is not None:
             object.__setattr__(self, "sigma", num("mesh", "sigma", self.sigma, lo=1.0, hi=1.6))
+        if not isinstance(self.wake, bool):
+            raise ValueError(f"mesh.wake = {self.wake!r}: must be true or false")
 
 
 @dataclass(frozen=True)
