@@ -7,7 +7,7 @@ high (default 6 cm: the original's (1, 4) cm), run to ``--t-end`` (default 0.32 
 mesh: ``--mesh graded`` (the default mesh, ``--sigma`` optional), ``field`` (graded
 from the nearest outline) or ``flow`` (``field`` graded by the vorticity as well at
 every remesh: ``CoupledStepper.flow_sizing = FlowSizing(--eps, --budget)``). The
-default graded mesh refines itself above a particle Reynolds number of 30
+default graded mesh refines itself above a particle Reynolds number of 40
 (``[mesh] wake``, :mod:`skfem_granular.coupled.wake`); ``--no-wake`` keeps the paper's
 circles throughout (the default mesh before that rule).
 Records the lateral offset ``x - x0`` over time (largest, final), the largest

@@ -61,7 +61,7 @@ class MeshSpec:
     ``"field"``, ``"uniform"`` or ``"group"`` (the paper's Fig. 13).
 
     ``wake`` (default true): a ``"graded"`` mesh with the default ``sigma`` is
-    remeshed with finer circles while a particle's Reynolds number is above 30
+    remeshed with finer circles while a particle's Reynolds number is above 40
     (:class:`~skfem_granular.coupled.wake.WakeGrading`; quiet flows keep the
     paper's mesh bit for bit); false keeps the paper's circles at every speed.
     """
