@@ -3,17 +3,20 @@
 The paper's graded mesh (Eq. 4, ``sigma = 1 + Delta_l / r0``) is fine all round a
 particle and coarse a few diameters behind it. That is what a creeping or slow flow
 needs, but behind a disk falling at a Reynolds number of a few hundred it damps the
-wake: a disk released 10 um off the centreline of a channel stayed within 2 um of
-it, where a finer mesh lets the offset grow into a shedding wake (docs/meshing.md).
+wake: a disk released 10 um off the centreline of a channel stayed within 0.6 um of
+it for 0.3 s, where graded circles of sigma = 1.05 let the offset grow to 28 um
+(docs/meshing.md).
 
 :class:`WakeGrading` is the indicator and the remedy, applied at every remesh of a
 ``graded`` mesh built with the default growth factor: while every particle's
 Reynolds number ``Re = |v| d / nu`` (``d`` twice the core's circumradius, ``v`` its
 velocity, ``nu`` the fluid's kinematic viscosity) stays at or below
 :data:`WAKE_REYNOLDS` the remesh keeps the default grading, bit for bit; above it
-the remesh grades with :data:`WAKE_SIGMA`. The rule reads the state at the remesh
-only (no memory): the same state gives the same mesh, and a particle that slows
-down again gets the default circles back at its next remesh.
+the remesh grades with :data:`WAKE_SIGMA`, and the
+:class:`~skfem_granular.coupled.stepper.CoupledStepper` remeshes at once when a wake
+starts on the default circles. The rule reads the particles' velocities only (no
+memory): the same state gives the same mesh, and a particle that slows down again
+gets the default circles back at its next remesh.
 """
 
 from __future__ import annotations
