@@ -17,7 +17,9 @@ earlier particle states the BDF2 formulas need (``xi_prev``, ``q_prev``).
 One step (monolithic coupling, the default):
 
 1. remesh first if a particle has moved ``remesh_fraction`` of its outline edge
-   since the mesh was built, transferring ``u_n``, ``u_{n-1}`` and the BDF2
+   since the mesh was built (or, on the default graded mesh, when a particle's Reynolds
+   number first exceeds :data:`~skfem_granular.coupled.wake.WAKE_REYNOLDS`:
+   :mod:`~skfem_granular.coupled.wake`), transferring ``u_n``, ``u_{n-1}`` and the BDF2
    derivatives (:mod:`skfem_granular.coupled.transfer`); a core closer to a wall or
    another core than the mesh follows is remeshed once, then stops the run with the fix
    (:mod:`skfem_granular.coupled.landing`);
