@@ -38,7 +38,10 @@ def write(path, header: dict, arrays: dict[str, np.ndarray], *, fsync: bool = Fa
 
     def save(tmp):
         with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
-            zf.writestr(HEADER_MEMBER, text)
+            # a fixed time stamp (the arrays' default, 1980-01-01), not the clock's: the same
+            # run writes the same bytes (two runs' checkpoints compared by hash differed
+            # when their writes fell in different 2-second zip time steps)
+            zf.writestr(zipfile.ZipInfo(HEADER_MEMBER), text)
             for key, a in arrays.items():
                 with zf.open(f"{key}.npy", "w", force_zip64=True) as f:
                     np.lib.format.write_array(f, np.asanyarray(a), allow_pickle=False)
