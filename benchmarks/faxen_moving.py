@@ -1,4 +1,4 @@
-"""Faxen's drag on a cylinder moved along the centre line of a closed channel (issue 12).
+"""Faxen's drag on a cylinder moved along the centre line of a closed channel.
 
 A regular ``--sides``-gon of radius a (default 96) is moved at a constant velocity U
 (a prescribed motion, ``motion = {velocity = [U, 0]}``) along the centre line of the
@@ -12,7 +12,7 @@ against a step of 12.5 ms (U dt = 0.05 a), so the drag is quasi-steady after the
 impulsive start.
 
 Reference: Faxen's series (docs/validation.md, case 3) gives F/(mu U) = 35.3234 at
-k = 1/3; it is good to < 0.04 % there and the circle's value is 35.31 (issue 12;
+k = 1/3; it is good to < 0.04 % there and the circle's value is 35.31 (
 the steady drags of 48-, 96- and 192-gons on this kind of mesh extrapolate to it,
 measured here). F is the force per unit length (2D) on the cylinder, the consistent
 reaction force ``-P^T R_f`` of the coupled system, ``-Fx`` in the history.
@@ -49,7 +49,7 @@ from skfem_granular.scene import Effects, MeshSpec, ParticleSpec, Scene, TimeSpe
 ROOT = Path(__file__).resolve().parents[1]
 A, U, MU, RHO = 0.5e-3, 2e-3, 1.0, 1000.0
 K = 1.0 / 3.0
-REFERENCE = 35.31  # the circle (issue 12); the series value is SERIES
+REFERENCE = 35.31  # the circle; the series value is SERIES
 
 
 def faxen_series(k: float) -> float:

@@ -57,7 +57,7 @@ VELOCITY = {"wall": (0.0, 0.0), "particle0": (0.0, -0.01)}
 DT = 1e-5
 A0 = 1.5 / DT  # BDF2 with constant steps
 
-#: Targets from the issue (2-core machine), seconds.
+#: Targets set for the fluid core (2-core machine), seconds.
 TARGETS = {
     "1k": {"steps_100": 1.5, "newton_iteration": 0.06},
     "9k": {"steps_100": 20.0, "newton_iteration": 1.2, "jacobian_assembly": 0.1},

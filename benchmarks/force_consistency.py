@@ -1,4 +1,4 @@
-"""Force consistency (issue 12): a free run's trajectory imposed again gives the same forces.
+"""Force consistency: a free run's trajectory imposed again gives the same forces.
 
 The paper's particle (bundled scene ``single_particle``: 24-gon of diameter 1 mm,
 rho_p = 2650 kg/m^3 in water, Navier-Stokes, monolithic coupling, moving mesh,

@@ -1,4 +1,4 @@
-"""Benchmark: pore flux through a touching honeycomb on several meshes (issue 13, (b)).
+"""Benchmark: pore flux through a touching honeycomb on several meshes.
 
 Usage: ``python benchmarks/mesh_accuracy.py [--quick] [--only NAME ...]``. Writes
 ``benchmarks/results/mesh_accuracy.json``.

@@ -7,7 +7,7 @@ single-particle box (3 x 11 mm, 1 mm disk, 24 and 48 outline segments), a
 100-particle group with graded surroundings, and remeshing after a move
 (compared with building anew).
 
-``--multi`` (issue 13) instead compares the multi-particle kinds (``field``,
+``--multi`` instead compares the multi-particle kinds (``field``,
 the default for more than one particle; ``graded`` circles per particle;
 ``group``; ``uniform``) on the collapse's block at t = 0, touching grains on the
 floor, one layer on the floor and 100 / 1000 scattered grains: build time
@@ -158,7 +158,7 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=15)
     ap.add_argument("--quick", action="store_true", help="smoke mode: one run each, no file")
     ap.add_argument("--multi", action="store_true",
-                    help="multi-particle kinds compared (issue 13): mesh_multi.json")
+                    help="multi-particle kinds compared: mesh_multi.json")
     ap.add_argument("--output",
                     default=str(Path(__file__).parent / "results" / "mesh_build.json"))
     args = ap.parse_args(argv)

@@ -1,4 +1,4 @@
-"""Benchmark: the default (field) mesh along the bundled collapse (issue 13).
+"""Benchmark: the default (field) mesh along the bundled collapse.
 
 Usage: ``python benchmarks/mesh_collapse.py [--t-end T]``. Runs the bundled
 ``collapse`` scene (its default mesh, moving mesh, remeshing) to ``--t-end``

@@ -1,4 +1,4 @@
-"""Benchmark: side by side with NGSolve on the same DFG 2D-1 meshes (issue 15).
+"""Benchmark: side by side with NGSolve on the same DFG 2D-1 meshes.
 
 Usage::
 

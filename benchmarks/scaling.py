@@ -1,4 +1,4 @@
-"""Scaling of the coupled collapse with the number of grains (issue 15).
+"""Scaling of the coupled collapse with the number of grains.
 
 Collapses of n x n hexagons (n = 5, 10, 20: 25, 100 and 400 grains) that differ
 only in size: the grain of the bundled ``collapse`` scene (radius 0.5 mm, 2650

@@ -19,6 +19,7 @@ Usage::
 
     python benchmarks/scaling_contact.py                  # 25 100 400 1000 grains
     python benchmarks/scaling_contact.py --n 25 100       # -> results/scaling_contact.json
+    python benchmarks/scaling_contact.py --n 400 --append # add a run to the file
     python benchmarks/scaling_contact.py --steps 12 --n 25 --out /tmp/x.json   # quick look
 """
 
@@ -122,6 +123,8 @@ def main(argv=None) -> dict | None:
     ap.add_argument("--n", type=int, nargs="+", default=list(GRAINS), help="grains per run")
     ap.add_argument("--steps", type=int, default=WINDOW_STEPS, help="steps per run")
     ap.add_argument("--out", type=Path, default=RESULTS / "scaling_contact.json")
+    ap.add_argument("--append", action="store_true",
+                    help="keep the runs of --out of other grain counts (one fit over all)")
     ap.add_argument("--child", nargs=2, metavar=("N", "STEPS"), help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
@@ -130,8 +133,11 @@ def main(argv=None) -> dict | None:
     data = {"benchmark": "scaling_contact", "commit": commit_id(), "cpus": os.cpu_count(),
             "aspect": ASPECT, "core_ratio": CORE_RATIO, "dt": DT, "warmup_steps": WARMUP,
             "runs": []}
+    if a.append and a.out.exists():
+        data["runs"] = [r for r in json.loads(a.out.read_text())["runs"] if r["grains"] not in a.n]
     for n in a.n:
         data["runs"].append(run_child(n, a.steps))
+        data["runs"].sort(key=lambda r: r["grains"])
         data["fits"] = fits(data["runs"])
         a.out.parent.mkdir(parents=True, exist_ok=True)
         a.out.write_text(json.dumps(data, indent=1) + "\n")  # kept after every run

@@ -1,4 +1,4 @@
-"""Issue 14: sedimentation checked against physics and the literature (long versions).
+"""Sedimentation checked against physics and the literature (long versions).
 
 Checks (``--check``), each writing ``benchmarks/results/sedimentation_<check>[_<tag>].json``
 and printing a markdown table:
@@ -210,7 +210,7 @@ def check_settling(args) -> dict:
                        "vy": hist.vy[:, 0].tolist(), "x": hist.x[:, 0].tolist()}}
     print("\n| quantity | measured | literature |\n|---|---|---|")
     print(f"| max Re_p | {s['re_max']:.4g} (t = {s['t_re_max']:.3g} s) | "
-          f"{lit['re_max']['status']} (issue quotes ~{lit['re_max']['quoted_in_issue']}) |")
+          f"{lit['re_max']['status']} (quoted ~{lit['re_max']['quoted_in_issue']}) |")
     print(f"| plateau v_y | {s['plateau']['plateau']:.5g} m/s "
           f"(reached: {s['plateau']['reached']}) | not found |")
     print(f"| final y | {s['y_final'] * 1e3:.3f} mm | not found |")
@@ -450,7 +450,7 @@ def check_cost(args) -> dict:
         result["note"] = "records resumed; wall_time_study_s of the run that computed them"
     if not args.smoke:
         (RESULTS / "study_settling.md").write_text(
-            "# settling study (issue 14, check 7)\n\n" + table + "\n")
+            "# settling study\n\n" + table + "\n")
         figs = ROOT / "docs" / "figures"
         settling_plots.plot_pareto(rows, figs / "study_settling_pareto.png")
         settling_plots.plot_convergence(rows, figs / "study_settling_convergence.png")

@@ -1,4 +1,4 @@
-"""A disk settling at Re ~350 (issue 15): steps without halvings, and what it costs.
+"""A disk settling at Re ~350: steps without halvings, and what it costs.
 
 A 2.5 mm disk (64-gon core), rho_p / rho_f = 1.5, in water-like fluid (nu = 1e-6 m^2/s),
 released at rest at (1, 4) cm in a closed 2 cm x 6 cm channel, graded mesh, monolithic

@@ -43,7 +43,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-TARGET = 1.5  # s, issue 15: the whole single-particle process
+TARGET = 1.5  # s: the whole single-particle process
 CLI_CODE = "import sys; from skfem_granular.cli import main; sys.exit(main())"
 
 

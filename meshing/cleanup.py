@@ -89,6 +89,7 @@ def near_particles(particles: Sequence[NDArray[np.float64]], x: NDArray[np.float
         if few:
             idx = np.arange(x.shape[1])
         else:
+            assert tree is not None  # built above for many particles
             idx = np.asarray(tree.query_ball_point(c, R + gmax), dtype=np.int64)
         if idx.size:
             idx = idx[np.hypot(*(x[:, idx] - c[:, None])) <= R + gap[idx]]
@@ -145,7 +146,7 @@ def wall_nodes(D: NDArray[np.float64], proj: NDArray[np.float64], proj_edge: NDA
         fix = np.hypot(*(fixed[:, fixed_edge == j] - D[:, j:j + 1]))
         anchors = np.sort(np.concatenate([[0.0, L[j]], fix]))
         h_anchor = sizing(D[:, j:j + 1] + anchors * E[:, j:j + 1])
-        kept = []
+        kept: list[float] = []
         for sk, hk in zip(s, hs, strict=True):
             far = np.abs(anchors - sk) >= fraction * np.maximum(hk, h_anchor)
             if np.all(far) and (not kept or sk - kept[-1] >= fraction * hk):

@@ -44,7 +44,7 @@ import triangle
 from numpy.typing import NDArray
 
 from .cleanup import merge_degenerate
-from .gaps import split_gap_edges
+from .gaps import GAP_SPACING, split_gap_edges
 from .geometry import centroids
 from .graded import check_rounds, check_sigma, prepare
 from .layer import GAP_FRACTION, WALL_FRACTION, layer_nodes
@@ -262,7 +262,7 @@ def joining_edges(layout: Layout, t: NDArray[np.int64], n_points: int
 def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
                sigma: float | None = None, delta_l: float | None = None, *,
                max_elements: int = MAX_FIELD_ELEMENTS, relax_rounds: int = 0,
-               size: object = None) -> skfem.MeshTri:
+               size: object = None, gap_spacing: float | None = None) -> skfem.MeshTri:
     """Graded mesh around many particles from a size field (module notes).
 
     Parameters
@@ -287,6 +287,11 @@ def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
         interpolated linearly after limiting their growth to ``sigma - 1`` per unit
         distance (:mod:`meshing.size_input`). The mesh follows ``min(rule, max(size,
         smallest outline edge))``; ``max_elements`` bounds it.
+    gap_spacing
+        Outline node spacing along a narrow gap as a fraction of its width (default
+        :data:`meshing.gaps.GAP_SPACING` = 1/3, about three elements across);
+        ``0.1 <= gap_spacing``, ``math.inf`` leaves the gaps unlined (the outline
+        edges alone). docs/meshing.md measures what a coarser lining costs in accuracy.
 
     Returns
     -------
@@ -302,7 +307,8 @@ def field_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
     apart, so about three elements lie across it; no edge joins two outlines.
     """
     return build_field(domain, particles, sigma=sigma, delta_l=delta_l,
-                       max_elements=max_elements, relax_rounds=relax_rounds, size=size).mesh
+                       max_elements=max_elements, relax_rounds=relax_rounds, size=size,
+                       gap_spacing=gap_spacing).mesh
 
 
 def check_max_elements(max_elements: object) -> int:
@@ -312,9 +318,21 @@ def check_max_elements(max_elements: object) -> int:
     return int(max_elements)
 
 
+def check_gap_spacing(gap_spacing: object) -> float:
+    """``gap_spacing`` as a float (default :data:`~meshing.gaps.GAP_SPACING`), or ValueError."""
+    if gap_spacing is None:
+        return GAP_SPACING
+    if (isinstance(gap_spacing, bool) or not isinstance(gap_spacing, int | float | np.number)
+            or not gap_spacing >= 0.1):
+        raise ValueError(f"gap_spacing: must be a number >= 0.1 (a fraction of the gap's "
+                         f"width; math.inf: gaps unlined), got {gap_spacing!r}")
+    return float(gap_spacing)
+
+
 def build_field(domain: object, particles: object, *, sigma: float | None = None,
                 delta_l: float | None = None, max_elements: int = MAX_FIELD_ELEMENTS,
-                relax_rounds: int = 0, size: object = None) -> BodyFittedMesh:
+                relax_rounds: int = 0, size: object = None,
+                gap_spacing: float | None = None) -> BodyFittedMesh:
     """:func:`field_mesh` as a :class:`~meshing.value.BodyFittedMesh`.
 
     What :func:`meshing.build` calls for ``kind="field"``.
@@ -322,6 +340,7 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
     sigma = check_sigma(sigma)
     check_rounds(relax_rounds)
     max_elements = check_max_elements(max_elements)
+    spacing = check_gap_spacing(gap_spacing)
     D, names, outlines = prepare(domain, particles, delta_l)
     if not outlines:
         raise ValueError("particles: field_mesh needs at least one particle "
@@ -338,7 +357,7 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
         raise ValueError(f"{rule}: {wall.shape[1]} wall nodes alone exceed max_elements = "
                          f"{max_elements}; use a larger delta_l or raise max_elements")
     nd = D.shape[1]
-    split, vertices = split_gap_edges(D, outlines, field)
+    split, vertices = split_gap_edges(D, outlines, field, spacing)
     n_split = sum(P.shape[1] for P in split)
     if n_split > max_elements:
         raise ValueError(f"{rule}: {n_split} outline nodes with the narrow gaps lined exceed "
@@ -376,5 +395,6 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
             break
     recipe = Recipe("field", domain, tuple(outlines),
                     dict(sigma=sigma, delta_l=delta_l, max_elements=max_elements,
-                         relax_rounds=relax_rounds, **({} if size is None else {"size": size})))
+                         relax_rounds=relax_rounds, **({} if size is None else {"size": size}),
+                         **({} if gap_spacing is None else {"gap_spacing": gap_spacing})))
     return to_body_fitted(tri, layout, recipe, outline_vertices=vertices)

@@ -96,7 +96,7 @@ def ring_radii(r0: float, sigma: float, r_max: float, dl: float | None = None,
     if dl is None:
         dl = q * r0
     n = int(np.ceil(np.log(1.0 + max(r_max - r0, 0.0) * q / dl) / np.log(sigma) - 1e-9))
-    i = np.arange(n + 1)
+    i = np.arange(n + 1, dtype=np.float64)  # as sigma ** int would cast it: same numbers
     r = r0 * sigma ** i if dl == q * r0 else r0 + dl * (sigma ** i - 1.0) / q
     if h_max is None or not np.any(np.diff(r) > h_max):
         return r

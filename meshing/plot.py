@@ -47,7 +47,7 @@ def plot_mesh(mesh, ax=None, boundaries: bool = True, lw: float = 0.4,
         cmap = plt.get_cmap("tab10")
         for i, (name, facets) in enumerate(sorted(named.items())):
             seg = np.transpose(p[:, mesh.facets[:, facets]], (2, 1, 0))
-            ax.add_collection(LineCollection(seg, colors=[cmap(i % 10)], lw=4 * lw + 1.0,
+            ax.add_collection(LineCollection(list(seg), colors=[cmap(i % 10)], lw=4 * lw + 1.0,
                                              label=name))
         if legend:
             ax.legend(loc="upper right", fontsize="small", framealpha=0.8)

@@ -84,7 +84,8 @@ class Layout:
 
 def boundary_labels(layout: Layout) -> list[tuple[str, ...]]:
     """Boundary names for each segment marker ``m >= 2`` (index ``m - 2``)."""
-    labels = [("wall", name) if name else ("wall",) for name in layout.edge_names]
+    labels: list[tuple[str, ...]] = [("wall", name) if name else ("wall",)
+                                     for name in layout.edge_names]
     labels += [(f"particle{p}",) for p in range(len(layout.particles))]
     return labels
 

@@ -48,13 +48,15 @@ def build(layout: Layout, sizing: Sizing, keep_out: Sequence[NDArray[np.float64]
         free, wall, wall_edge = repair_nodes(layout, tri, keep_out)
         if free.shape[1] + wall.shape[1] == 0:
             break
-        wall = dict(wall=np.hstack([layout.wall, wall]),
-                    wall_edge=np.concatenate([layout.wall_edge, wall_edge]))
+        wall = np.hstack([layout.wall, wall])
+        wall_edge = np.concatenate([layout.wall_edge, wall_edge])
         if k < REPAIR_ROUNDS:
-            layout = replace(layout, free=np.hstack([layout.free, free]), **wall)
+            layout = replace(layout, free=np.hstack([layout.free, free]), wall=wall,
+                             wall_edge=wall_edge)
             layout = relax(layout, sizing, keep_out, rounds=1)
         else:  # the last resort: where the repair puts them
-            layout = replace(layout, fixed=np.hstack([layout.fixed, free]), **wall)
+            layout = replace(layout, fixed=np.hstack([layout.fixed, free]), wall=wall,
+                             wall_edge=wall_edge)
         layout, tri = merge_degenerate(layout, sizing)
     return layout, tri
 
@@ -99,15 +101,15 @@ def repair_nodes(layout: Layout, tri: Triangulation, keep_out: Sequence[NDArray[
     outside = ~inside(layout.domain, cc, 0.0)
     split = np.any(enc, axis=1) | outside
     hit = np.zeros(seg.shape[0], dtype=bool)
-    for j in np.flatnonzero(split):
-        hit[np.argmin(dist[j] - rad) if not enc[j].any() else np.flatnonzero(enc[j])] = True
+    for i in np.flatnonzero(split):
+        hit[np.argmin(dist[i] - rad) if not enc[i].any() else np.flatnonzero(enc[i])] = True
     wall = mid[:, hit]
     wall_edge = (mark[hit] - 2).astype(np.int64)
     # circumcentres inside, away from walls and particles
     x = cc[:, ~split]
     gap = 0.5 * size[~split]
     ok = ~near_particles(list(keep_out), x, gap) if keep_out else np.ones(x.shape[1], bool)
-    free = [x[:, ok]]
+    pieces = [x[:, ok]]
     # otherwise the equilateral apex on the shortest edge
     rest = np.flatnonzero(~split)[~ok]
     if rest.size:
@@ -123,8 +125,8 @@ def repair_nodes(layout: Layout, tri: Triangulation, keep_out: Sequence[NDArray[
         good = inside(layout.domain, y, 0.0)
         if keep_out and good.any():
             good[good] &= ~near_particles(list(keep_out), y[:, good], q[good])
-        free.append(y[:, good])
-    free = np.hstack(free)
+        pieces.append(y[:, good])
+    free = np.hstack(pieces)
     if free.shape[1] > 1:   # one node per cluster of nearby insertions
         _, first = np.unique(np.round(free / (0.5 * float(size.min()))), axis=1,
                              return_index=True)

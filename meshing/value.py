@@ -10,6 +10,7 @@ next to the mesh in a :class:`BodyFittedMesh`, never on it.
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -54,6 +55,12 @@ class Recipe:
         """
         return build(self.kind, self.domain, self.particles, **self.options)
 
+    def __repr__(self) -> str:
+        opts = ", ".join(f"{k}={v!r}" for k, v in self.options.items() if v is not None)
+        dom = self.domain if isinstance(self.domain, tuple) else "outline"
+        return (f"Recipe({self.kind!r}, domain={dom}, {len(self.particles)} particles"
+                + (f", {opts})" if opts else ")"))
+
 
 @dataclass(frozen=True, eq=False)
 class BodyFittedMesh:
@@ -91,6 +98,11 @@ class BodyFittedMesh:
     def __post_init__(self) -> None:
         object.__setattr__(self, "particle_nodes",
                            tuple(np.asarray(idx) for idx in self.particle_nodes))
+
+    def __repr__(self) -> str:
+        kind = "no recipe" if self.recipe is None else repr(self.recipe.kind)
+        return (f"BodyFittedMesh({kind}: {self.mesh.p.shape[1]} vertices, "
+                f"{self.mesh.t.shape[1]} triangles, {len(self.particle_nodes)} particles)")
 
 
 def mesh_of(mesh: object) -> Any:
@@ -143,8 +155,9 @@ def build(kind: str, domain: object, particles: object, **options: Any) -> BodyF
     from .group import build_group
     from .uniform import build_uniform
 
-    builders = {"graded": build_graded, "uniform": build_uniform, "group": build_group,
-                "field": build_field}
+    builders: dict[str, Callable[..., BodyFittedMesh]] = {
+        "graded": build_graded, "uniform": build_uniform, "group": build_group,
+        "field": build_field}
     if not isinstance(kind, str) or kind not in builders:
         raise ValueError(f"kind: expected one of {', '.join(map(repr, KINDS))}, got {kind!r}")
     builder = builders[kind]

@@ -14,6 +14,7 @@ from .fluid import (
     RigidMotion,
     SolveReport,
     TaylorHood,
+    UserTerms,
     solve_steady,
 )
 from .fluid.unsteady import BDF2Integrator, evolve
@@ -26,4 +27,4 @@ __all__ = ["BDF2Integrator", "ConvergenceError", "Effects", "Flow", "Fluid", "Me
            "ParticleSpec", "Polygon", "PrescribedMotion", "RigidMotion", "Scene", "Simulation",
            "SimulationError",
            "SimulationResult",
-           "SolveReport", "TaylorHood", "TimeSpec", "evolve", "solve_steady"]
+           "SolveReport", "TaylorHood", "TimeSpec", "UserTerms", "evolve", "solve_steady"]

@@ -327,3 +327,22 @@ def test_checkpoint_holding_a_newton_jacobian_resumes_bit_for_bit(tmp_path, monk
         assert np.array_equal(getattr(run.history, c), getattr(res.history, c)), c
     assert res.summary["jacobian_refreshes"] == run.summary["jacobian_refreshes"]
     assert res.summary["factorizations"] == run.summary["factorizations"]
+
+
+def test_same_content_same_bytes(tmp_path, monkeypatch):
+    """A plain-data file is a function of its content: written in two different seconds
+    (the zip members were dated by the clock), the bytes are the same."""
+    import time as _time
+
+    from skfem_granular.io import plain
+
+    node, arrays = plain.encode({"a": np.arange(5.0), "b": "x"}, plain.Registry())
+    plain.write(tmp_path / "1.npz", {"content": node}, arrays)
+    later = _time.time() + 3.0
+    monkeypatch.setattr(_time, "time", lambda: later)
+    monkeypatch.setattr(_time, "localtime", lambda t=None: _time.gmtime(later))
+    plain.write(tmp_path / "2.npz", {"content": node}, arrays)
+    assert (tmp_path / "1.npz").read_bytes() == (tmp_path / "2.npz").read_bytes()
+    header, back = plain.read(tmp_path / "2.npz")
+    assert np.array_equal(plain.decode(header["content"], back, plain.Registry())["a"],
+                          np.arange(5.0))

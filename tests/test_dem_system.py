@@ -70,11 +70,13 @@ def test_stable_step_estimate():
 
 
 def test_free_fall_buoyancy_reduced_gravity():
-    # a lone particle: g_eff = g (rho_p - rho_f) / rho_p, exact for BDF2
+    # a lone particle: g_eff = g (rho_p - rho_f A_core / A) / rho_p, exact for BDF2; the
+    # default core is the shadow scaled by 0.8, so A_core / A = 0.64
     s = DEMSystem([hexagon(0.0, 0.0, velocity=(0.01, 0.0))], fluid_density=1000.0)
     n = s.advance(1e-3)
     assert n == int(np.ceil(1e-3 / s.dt_stable))
-    g = 9.81 * (2650.0 - 1000.0) / 2650.0
+    assert s.particles.core_area[0] == pytest.approx(0.64 * s.particles.area[0], rel=1e-12)
+    g = 9.81 * (2650.0 - 1000.0 * 0.64) / 2650.0
     assert s.velocities[1, 0] == pytest.approx(-g * 1e-3, rel=1e-12)
     assert s.positions[1, 0] == pytest.approx(-0.5 * g * 1e-6, rel=1e-10)
     assert s.positions[0, 0] == pytest.approx(1e-5, rel=1e-12)

@@ -59,6 +59,8 @@ def test_motion_kinds_and_poses():
     f = PrescribedMotion(trajectory=lambda t: (np.cos(t), np.sin(t), t))
     assert f.kind == "function" and f.pose(0.0).tolist() == [1.0, 0.0, 0.0]
     assert tab == PrescribedMotion(trajectory=T.copy()) and tab != m
+    with pytest.raises(TypeError, match="unhashable"):  # equal by value, so not hashable
+        hash(m)
 
 
 def test_pose_derivative_is_exact_for_constant_acceleration():

@@ -43,6 +43,8 @@ def test_wheel_installs_and_runs_outside_the_checkout(tmp_path):
     where = _run([py, "-c", "import skfem_granular, meshing; print(skfem_granular.__file__); "
                             "print(meshing.__file__)"], elsewhere).split()
     assert all(str(venv) in w and str(ROOT) not in w for w in where), where
+    # the PEP 561 markers: type checkers use the packages' annotations
+    assert all((Path(w).parent / "py.typed").is_file() for w in where), where
     scenes = _run([exe, "scenes"], elsewhere)
     assert "single_particle" in scenes and "collapse" in scenes
     out = tmp_path / "x"

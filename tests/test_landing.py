@@ -100,3 +100,30 @@ def test_landing_with_contacts_comes_to_rest():
     assert 0.0 < overlap < 1e-6
     weight = (2650.0 - 1000.0) * 9.81 * 12 * (0.5e-3) ** 2 * np.sin(2 * np.pi / 24)
     assert abs(h.Fy[-1, 0]) < 1e-3 * weight
+
+
+def test_core_gaps_cutoff_is_exact_below_it():
+    """Random hexagons in a box: with a cutoff, every gap below it equals the exact gap
+    (same partner), every other one is at or above it."""
+    rng = np.random.default_rng(3)
+    ang = np.linspace(0, 2 * np.pi, 7)[:-1]
+    centres = [(x, y) for x in np.arange(0.6, 9.5, 1.05) for y in np.arange(0.6, 5.5, 1.05)]
+    cores = [np.array([cx + 0.5 * np.cos(ang + t), cy + 0.5 * np.sin(ang + t)])
+             for (cx, cy), t in zip(centres, rng.uniform(0, np.pi, len(centres)), strict=True)]
+    box = (0.0, 0.0, 10.0, 6.0)
+    exact, p_exact = core_gaps(cores, box)
+    cut = np.full(len(cores), 0.12)
+    gaps, partner = core_gaps(cores, box, cutoff=cut)
+    below = exact < cut
+    assert 0 < below.sum() < len(cores)
+    np.testing.assert_array_equal(gaps[below], exact[below])
+    np.testing.assert_array_equal(partner[below], p_exact[below])
+    assert np.all(gaps[~below] >= cut[~below])
+    # brute force over every pair
+    from meshing.geometry import edge_distance
+    for k, P in enumerate(cores):
+        walls = edge_distance(np.array([[0.0, 10.0, 10.0, 0.0], [0.0, 0.0, 6.0, 6.0]]),
+                              P)[0].min()
+        pairs = [min(-edge_distance(Q, P)[0].max(), -edge_distance(P, Q)[0].max())
+                 for j, Q in enumerate(cores) if j != k]
+        assert exact[k] == pytest.approx(min(walls, *pairs), rel=1e-12)

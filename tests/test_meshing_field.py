@@ -412,3 +412,34 @@ def test_forces_on_a_moving_block_match_a_fine_mesh():
                          - ref).T) / np.hypot(*ref.T) for s in (None, 1.5)}
     assert err[None].max() <= 2e-3
     assert err[None].max() < err[1.5].max() <= 5e-3
+
+
+def test_gap_spacing_sets_the_lining():
+    """``gap_spacing = 1``: the honeycomb's flat faces 0.173 mm apart carry outline nodes
+    at most one gap width apart (0.173 mm, against 0.058 at the default third), the
+    bottom faces 0.087 mm over the floor at most 0.087 mm; fewer nodes, the same
+    quality bounds, no element across a gap, and remeshes keep the spacing."""
+    d, parts, dl = TOUCHING["honeycomb 3 x 3 on the floor"]
+    value = meshing.build("field", d, parts, delta_l=dl, gap_spacing=1.0)
+    default = meshing.build("field", d, parts, delta_l=dl)
+    mesh = value.mesh
+    a = R * np.sqrt(3) / 2
+    f = mesh.facets[:, mesh.boundaries["particle0"]]
+    y = mesh.p[1, f]
+    L = np.hypot(*(mesh.p[:, f[0]] - mesh.p[:, f[1]]))
+    top = np.all(np.isclose(y, a + CORE * a), axis=0)
+    bottom = np.all(np.isclose(y, a - CORE * a), axis=0)
+    assert L[top].max() <= 0.2 * np.sqrt(3) * R * (1 + 1e-9)
+    assert L[bottom].max() <= 0.1 * np.sqrt(3) * R * (1 + 1e-9)
+    assert L[bottom].max() > 0.1 * np.sqrt(3) * R / 3 * (1 + 1e-9)   # coarser than 1/3
+    assert mesh.p.shape[1] < 0.8 * default.mesh.p.shape[1]
+    s = check_outlines_and_gaps(value, [geometry.subdivide(P, dl) for P in parts])
+    assert s.min_angle >= 20.0
+    assert value.recipe.options["gap_spacing"] == 1.0
+    moved = [P + np.array([[1e-3], [0.0]]) for P in parts]
+    again = meshing.remesh(value, moved)
+    fresh = meshing.build("field", d, moved, delta_l=dl, gap_spacing=1.0)
+    np.testing.assert_array_equal(again.mesh.p, fresh.mesh.p)
+    for bad in (0.05, 0, -1.0, "1", True):
+        with pytest.raises(ValueError, match="gap_spacing"):
+            meshing.build("field", d, parts, delta_l=dl, gap_spacing=bad)

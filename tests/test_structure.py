@@ -140,3 +140,50 @@ def test_the_rules_catch_what_they_are_for(tmp_path):
             raise AssertionError(f"{check.__name__} missed the planted finding")
     finally:
         MODULES = saved
+
+
+#: Longest function, in lines of code (its docstring, blank lines and comments not counted).
+MAX_FUNCTION_LINES = 80
+
+
+def code_lines(fn: ast.FunctionDef | ast.AsyncFunctionDef, lines: list[str]) -> int:
+    """Lines of code of a function: from its first statement after the docstring to its
+    end, blank and comment-only lines left out (nested functions count in full)."""
+    body = fn.body
+    doc = (isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+           and isinstance(body[0].value.value, str))
+    if doc and len(body) == 1:
+        return 0
+    first = body[1].lineno if doc else body[0].lineno
+    first = min([first] + [d.lineno for d in fn.decorator_list if d.lineno > fn.lineno])
+    return sum(1 for text in lines[first - 1:fn.end_lineno]
+               if text.strip() and not text.strip().startswith("#"))
+
+
+def long_functions(paths, base: Path = ROOT) -> list[str]:
+    out = []
+    for path in paths:
+        text = path.read_text()
+        lines = text.splitlines()
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                n = code_lines(node, lines)
+                if n > MAX_FUNCTION_LINES:
+                    out.append(f"{path.relative_to(base)}:{node.lineno} {node.name}: {n} lines")
+    return out
+
+
+def test_no_function_longer_than_80_lines():
+    paths = [p for pkg in ("skfem_granular", "meshing") for p in sorted((ROOT / pkg).rglob("*.py"))]
+    assert len(paths) > 100
+    assert long_functions(paths) == []
+
+
+def test_function_length_counts_code_only(tmp_path):
+    body = "\n".join(f"    x{k} = {k}" for k in range(81))
+    src = (f'def long():\n    """Doc.\n\n    more doc\n    """\n    # a comment\n\n{body}\n\n'
+           f'def short():\n    """Doc."""\n' + "\n".join(f"    # c{k}" for k in range(90))
+           + "\n    return 1\n")
+    p = tmp_path / "probe.py"
+    p.write_text(src)
+    assert long_functions([p], base=tmp_path) == ["probe.py:1 long: 81 lines"]

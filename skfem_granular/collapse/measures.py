@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..dem import Polygon
-from ..dem.polygon import polygon_properties
+from ..dem.polygon import polygon_area, polygon_properties
 from ..packing import Packing
 
 __all__ = ["deposit_profile", "flowing_solid_fraction", "front_froude", "front_position",
@@ -129,8 +129,7 @@ def flowing_solid_fraction(outlines, speeds, v_min: float) -> float:
     if len(moving) < 3:
         return float("nan")
     V = np.concatenate(moving, axis=1)
-    A = sum(0.5 * float(np.dot(P[0], np.roll(P[1], -1)) - np.dot(np.roll(P[0], -1), P[1]))
-            for P in moving)
+    A = sum(polygon_area(P) for P in moving)
     return A / ConvexHull(V.T).volume
 
 

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dem.polygon import polygon_area
 from ..fluid.space import TaylorHood
 
 
 def outline_areas(outlines) -> np.ndarray:
     """Areas ``(K,)`` of counter-clockwise outlines (shoelace formula)."""
-    return np.array([0.5 * float(np.sum(o[0] * np.roll(o[1], -1) - np.roll(o[0], -1) * o[1]))
-                     for o in outlines])
+    return np.array([polygon_area(o) for o in outlines])
 
 
 def outline_edge(outline: np.ndarray, delta_l: float | None) -> float:
@@ -33,22 +33,25 @@ def build_mesh(scene, cores):
     if kind == "auto":
         kind = "graded" if len(cores) == 1 else "field"
     options = {"graded": {"sigma": m.sigma, "delta_l": m.delta_l},
-               "field": {"sigma": m.sigma, "delta_l": m.delta_l},
+               "field": {"sigma": m.sigma, "delta_l": m.delta_l,
+                         **({} if m.gap_spacing is None else {"gap_spacing": m.gap_spacing})},
                "uniform": {"h": m.h, "delta_l": m.delta_l},
                "group": {"h": m.h, "sigma": m.sigma, "delta_l": m.delta_l}}[kind]
     return meshing.build(kind, scene.domain, cores, **options)
 
 
-def build_coupling(scene, mesh, dem, centers=None):
+def build_coupling(scene, mesh, dem, centers=None, terms=None, assembly="compiled"):
     """The coupling object for ``mesh`` (a ``skfem.MeshTri``); ``centers`` (2, K): the
-    particles' reference positions on it (default: where the DEM holds them now)."""
+    particles' reference positions on it (default: where the DEM holds them now);
+    ``terms``: user forms of the fluid (:class:`~skfem_granular.fluid.UserTerms`);
+    ``assembly``: how the built-in blocks are assembled (:class:`TaylorHood`)."""
     from .monolithic import MonolithicCoupling
     from .partitioned import PartitionedCoupling
 
-    space = TaylorHood(mesh)
+    space = TaylorHood(mesh, assembly=assembly)
     walls = {"wall": (0.0, 0.0)}
     cls = MonolithicCoupling if scene.coupling == "monolithic" else PartitionedCoupling
     centers = dem.positions.copy() if centers is None else np.array(centers, dtype=float)
     return cls(space, scene.fluid, walls, centers, dem.mass.copy(),
                dem.inertia.copy(), convection=scene.effects.convection,
-               rotation=scene.effects.rotation, imposed=dem.imposed.copy())
+               rotation=scene.effects.rotation, imposed=dem.imposed.copy(), terms=terms)

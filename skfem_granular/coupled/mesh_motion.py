@@ -76,7 +76,9 @@ class MeshMotion:
             f = np.concatenate([self.free[0], nv + self.free[1]])
             b = np.concatenate([self.fixed[0], nv + self.fixed[1]])
         self._blocks = (f, b, A[f][:, b], spla.splu(sp.csc_matrix(A[f][:, f])) if f.size else None)
-        self.area_ref = _signed_areas(self.p_ref, self.t)
+        from meshing.quality import signed_areas  # meshing: imported when a mesh moves
+
+        self.area_ref = signed_areas(self.p_ref, self.t)
 
     def _stiffness(self) -> sp.csr_matrix:
         """P1 Laplacian with coefficient ``1 / area`` per triangle (element-size stiffening)."""
@@ -139,11 +141,6 @@ def sliding_wall_nodes(mesh, particle_nodes) -> tuple[np.ndarray, np.ndarray]:
         same = np.bincount(facets[:, along].ravel(), minlength=p.shape[1])
         out.append(np.flatnonzero((count > 0) & (same == count)).astype(np.int64))
     return out[0], out[1]
-
-
-def _signed_areas(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-    a, b, c = p[:, t[0]], p[:, t[1]], p[:, t[2]]
-    return 0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
 
 
 def mesh_quality(p: np.ndarray, t: np.ndarray, area_ref: np.ndarray) -> tuple[float, float]:

@@ -94,13 +94,19 @@ class MonolithicCoupling(RigidParticles):
         Particles with a prescribed motion: no rigid DOFs of theirs in the system
         (their boundary values are Dirichlet data, ``step(xi_imposed=...)``); the
         fluid force on them is the same consistent reaction ``-P_k^T R_f``.
+    terms : UserTerms, optional
+        scikit-fem forms added to the fluid equations
+        (:class:`~skfem_granular.fluid.user_terms.UserTerms`), assembled at ``t_new`` on
+        the mesh of each iterate; the chord operator holds their matrices where it was
+        factorised, and a step iterates to ``newton_tol`` even for Stokes.
     """
 
     def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
                  convection: bool = True, rotation: bool = True, solver: str = "auto",
-                 newton_tol: float = 1e-8, max_iterations: int = 15, imposed=None):
+                 newton_tol: float = 1e-8, max_iterations: int = 15, imposed=None,
+                 terms=None):
         super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
-                         rotation=rotation, imposed=imposed)
+                         rotation=rotation, imposed=imposed, terms=terms)
         self._xi_imposed = None  # the imposed particles' rigid velocities of the step
         self.newton_tol = newton_tol
         self.max_iterations = max_iterations
@@ -252,7 +258,7 @@ class MonolithicCoupling(RigidParticles):
                               None if x is None else np.array(x, dtype=float),
                               None if x is None or w is None else np.array(w, dtype=float))
         A_uu = self.op.velocity_block(a0)
-        J = self.op.matrix(A_uu) if x is None else self.op.jacobian(x, a0, w_mesh=w)
+        J = self.op.linear_matrix(A_uu) if x is None else self.op.jacobian(x, a0, w_mesh=w)
         Jz = (self.ET @ J @ self.E).tocsr()
         diag = np.zeros(self.nz)
         diag[self.rigid_slice] = a0 * self._inertia_diag()
@@ -326,6 +332,7 @@ class MonolithicCoupling(RigidParticles):
             xi_guess = np.array(xi_n if xi_guess is None else xi_guess, dtype=float)
             xi_guess[:, self.imposed] = self._xi_imposed[:, self.imposed]
         a0, a1, a2 = ts.bdf2_coefficients(dt, dt_prev)
+        self.reference_op.time = self.op.time = t_new  # where user terms are assembled
         rho = self.fluid.density
         hist_u = a1 * u_n + (a2 * u_prev if dt_prev is not None else 0.0)
         rhs_u = -rho * (self.space.M @ hist_u)
@@ -358,11 +365,11 @@ class MonolithicCoupling(RigidParticles):
         t0 = time.perf_counter()
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
-        solve = self.solver.solve_correction if self.op.convection else self.solver.solve
+        solve = self.solver.solve_correction if not self.op.linear else self.solver.solve
         last = {"dn": None, "refresh": False, "refreshed": 0, "refresh_time": 0.0}
 
         def stop(it, dz, z):
-            if not self.op.convection and geometry is None:
+            if self.op.linear and geometry is None:
                 return True
             dn = float(np.abs(dz[: self.nu_z]).max())
             if not np.isfinite(dn):

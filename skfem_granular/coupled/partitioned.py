@@ -62,9 +62,10 @@ class PartitionedCoupling(RigidParticles):
         newton_tol: float = 1e-9,
         max_iterations: int = 15,
         imposed=None,
+        terms=None,
     ):
         super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
-                         rotation=rotation, imposed=imposed)
+                         rotation=rotation, imposed=imposed, terms=terms)
         self.subiterations = int(subiterations)
         if relaxation != "aitken" and not 0.0 < float(relaxation) <= 1.0:
             raise ValueError(f"relaxation = {relaxation!r}: must be 'aitken' or in (0, 1]")
@@ -90,7 +91,7 @@ class PartitionedCoupling(RigidParticles):
         A_uu = self.factors.A_uu
 
         def stop(it, dx, x):
-            return not op.convection or float(np.abs(dx).max()) <= self.newton_tol * max(
+            return op.linear or float(np.abs(dx).max()) <= self.newton_tol * max(
                 scale, np.abs(x[: self.space.nu]).max())
 
         it = newton_iterate(x, lambda x: op.residual(x, rhs_u=rhs_u, A_uu=A_uu),
@@ -123,6 +124,7 @@ class PartitionedCoupling(RigidParticles):
             raise ValueError("PartitionedCoupling.step: xi_imposed (3, K) is required: the "
                              "coupling has particles with a prescribed motion")
         sp_, op = self.space, self.op
+        op.time = t_new  # where the user terms are assembled
         a0, a1, a2 = ts.bdf2_coefficients(dt, dt_prev)
         self.factors.operator(a0)
         hist_u = a1 * u_n + (a2 * u_prev if dt_prev is not None else 0.0)

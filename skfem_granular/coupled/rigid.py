@@ -37,10 +37,15 @@ class RigidParticles:
         each step (``xi_imposed``) as Dirichlet data, not solved for (with their
         rotation, whatever ``rotation`` says); the fluid force on them is reported
         as on the others. Default: none.
+    terms : UserTerms, optional
+        scikit-fem forms added to the fluid equations
+        (:class:`~skfem_granular.fluid.user_terms.UserTerms`); the consistent forces on
+        the particles include them.
     """
 
     def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
-                 convection: bool = True, rotation: bool = True, imposed=None):
+                 convection: bool = True, rotation: bool = True, imposed=None,
+                 terms=None):
         self.space = space
         self.fluid = fluid
         self.K = int(np.asarray(mass).size)
@@ -56,7 +61,7 @@ class RigidParticles:
         specs = dict(walls)
         specs.update({n: (0.0, 0.0) for n in names})
         self.op = NavierStokesOperator(space, fluid, DirichletData(space, specs),
-                                       convection=convection)
+                                       convection=convection, terms=terms)
         self.wall_dirichlet = DirichletData(space, walls) if walls else None
         self.particle_dofs = [space.boundary_dofs(n) for n in names]
         # every particle's DOFs at once, with their particle and component: the lever arms

@@ -119,6 +119,12 @@ class CoupledStepper:
         Wall times per phase are added to it (default: a new dict).
     centers, angles : ndarray, optional
         The particles' poses the mesh was built for (default: the DEM's now).
+    terms : UserTerms, optional
+        User forms added to the fluid equations on every mesh
+        (:class:`~skfem_granular.fluid.UserTerms`).
+    assembly : {"compiled", "scikit-fem"}
+        How the fluid's built-in blocks are assembled on every mesh
+        (:class:`~skfem_granular.fluid.TaylorHood`).
 
     Attributes
     ----------
@@ -132,8 +138,9 @@ class CoupledStepper:
     """
 
     def __init__(self, scene, dem, mesh, *, contacts_active: bool, timings=None,
-                 centers=None, angles=None):
+                 centers=None, angles=None, terms=None, assembly="compiled"):
         self.scene = scene
+        self.terms, self.assembly = terms, assembly
         self.dem = dem
         self.contacts_active = bool(contacts_active)
         self.timings = {} if timings is None else timings
@@ -197,6 +204,11 @@ class CoupledStepper:
         """Whether the mesh moves with the particles (:attr:`Scene.moving_mesh`)."""
         return self.scene.moving_mesh
 
+    def __repr__(self) -> str:
+        return (f"CoupledStepper({self.scene.coupling}, {'ALE' if self.ale else 'fixed'} mesh, "
+                f"t={self.state.t:.6g} s, {self.dem.n} particles, {self.space.N} unknowns, "
+                f"{self.remeshes} remeshes)")
+
     def _set_mesh(self, mesh, centers=None, angles=None):
         old = getattr(self, "coupling", None)
         if old is not None:  # keep the phase times and counts of the coupling being replaced
@@ -207,7 +219,8 @@ class CoupledStepper:
         self.meshed = mesh
         dem = self.dem
         built = getattr(mesh, "mesh", mesh)
-        self.coupling = build_coupling(self.scene, built, dem, centers=centers)
+        self.coupling = build_coupling(self.scene, built, dem, centers=centers,
+                                       terms=self.terms, assembly=self.assembly)
         self.reference_space = self.coupling.space
         self.mesh_centers = dem.positions.copy() if centers is None else np.array(centers)
         self.mesh_angles = dem.angles.copy() if angles is None else np.array(angles)
@@ -608,10 +621,11 @@ class CoupledStepper:
 
     @classmethod
     def from_checkpoint_state(cls, scene, dem, data: dict, *, contacts_active: bool,
-                              timings=None) -> CoupledStepper:
-        """The stepper that wrote ``data`` (:meth:`checkpoint_state`), for ``dem`` restored."""
+                              timings=None, terms=None) -> CoupledStepper:
+        """The stepper that wrote ``data`` (:meth:`checkpoint_state`), for ``dem`` restored
+        (``terms``: the user forms of the fluid, which a checkpoint does not hold)."""
         st = cls(scene, dem, data["mesh"], contacts_active=contacts_active, timings=timings,
-                 centers=data["mesh_centers"], angles=data["mesh_angles"])
+                 centers=data["mesh_centers"], angles=data["mesh_angles"], terms=terms)
         st.state = data["state"]
         st.flow_sizing = data.get("flow_sizing")
         st.wake_grading = data.get("wake_grading", st.wake_grading)

@@ -97,8 +97,8 @@ class NeighbourList:
 
     def __init__(self, margin: float):
         self.margin = float(margin)
-        self.reference = None
-        self.pairs = None
+        self.reference: np.ndarray | None = None
+        self.pairs: tuple[np.ndarray, np.ndarray] | None = None
         self.builds = 0
 
     def invalidate(self) -> None:

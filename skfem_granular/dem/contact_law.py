@@ -116,7 +116,12 @@ class ContactForces:
         Tangential spring force to store in the history.
     energy
         ``(C,)`` elastic energy estimate ``E A^2 / (2 L l) + ft^2 / (2 k_t)``.
+    keys
+        ``(C,)`` contact-history keys of the pairs (set by
+        :func:`~skfem_granular.dem.pipeline.apply_contact_law`).
     """
+
+    keys: np.ndarray
 
     def __init__(self, i, j, point, normal, fn, ft, ft_spring, energy, area):
         self.i, self.j = i, j

@@ -31,9 +31,11 @@ particle's own ``velocity``/``angular_velocity`` for a table or a function
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..timestep import bdf2_coefficients
 
@@ -103,7 +105,7 @@ class PrescribedMotion:
 
     velocity: tuple = (0.0, 0.0)
     omega: float = 0.0
-    trajectory: object = None
+    trajectory: ArrayLike | Callable[[float], ArrayLike] | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "velocity", _finite("motion.velocity", self.velocity, 2))
@@ -153,13 +155,20 @@ class PrescribedMotion:
             return self.trajectory is other.trajectory
         return self.velocity == other.velocity and self.omega == other.omega
 
-    __hash__ = None
+    # no __hash__: a class defining __eq__ gets __hash__ = None (unhashable, as a table is)
+
+    def _table(self) -> np.ndarray:
+        """The ``(4, n)`` table of the kind ``"table"`` (stored read-only by ``__post_init__``)."""
+        T = self.trajectory
+        assert isinstance(T, np.ndarray)
+        return T
 
     @property
     def span(self) -> tuple[float, float]:
         """The times the motion is defined for (a table's first and last; else all)."""
         if self.kind == "table":
-            return float(self.trajectory[0, 0]), float(self.trajectory[0, -1])
+            T = self._table()
+            return float(T[0, 0]), float(T[0, -1])
         return -np.inf, np.inf
 
     # ------------------------------------------------------------------ poses
@@ -168,7 +177,7 @@ class PrescribedMotion:
         if s is None:
             from scipy.interpolate import CubicSpline
 
-            T = self.trajectory
+            T = self._table()
             s = CubicSpline(T[0], T[1:], axis=1)
             object.__setattr__(self, "_cached_spline", s)
         return s
@@ -201,13 +210,15 @@ class PrescribedMotion:
             if not (t0 - tol <= t <= t1 + tol):
                 raise ValueError(f"motion.trajectory: t = {t:.6g} s lies outside the table "
                                  f"[{t0:.6g}, {t1:.6g}] s")
-            T = self.trajectory
+            T = self._table()
             k = np.searchsorted(T[0], t)
             if k < T.shape[1] and T[0, k] == t:  # a sample: its pose, bit for bit
                 return T[1:, k].copy()
             return np.asarray(self._spline()(min(max(t, t0), t1)), dtype=float)
+        f = self.trajectory
+        assert callable(f)  # the kind "function"
         try:
-            q = np.asarray(self.trajectory(t), dtype=float).reshape(-1)
+            q = np.asarray(f(t), dtype=float).reshape(-1)
         except (TypeError, ValueError):
             q = np.zeros(0)
         if q.size != 3 or not np.all(np.isfinite(q)):
@@ -258,7 +269,7 @@ class PrescribedMotion:
         s = np.asarray(start, dtype=float).reshape(3)
         ts = np.linspace(0.0, float(t_end), 257)
         if self.kind == "table":
-            T = self.trajectory[0]
+            T = self._table()[0]
             ts = np.union1d(ts, T[(T >= 0.0) & (T <= t_end)])
             ts = ts[(ts >= self.span[0]) & (ts <= self.span[1])]
         q = np.array([self.pose(t, s) for t in ts]).T

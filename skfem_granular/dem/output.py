@@ -27,13 +27,15 @@ def write_outlines_vtu(path, system) -> None:
     import meshio
 
     outlines = []
-    for kind, lines in (("shadow", system.shadow_outlines()), ("core", system.core_outlines())):
+    for label, lines in (("shadow", system.shadow_outlines()), ("core", system.core_outlines())):
         for k, o in enumerate(lines):
-            outlines.append((o, k, KIND[kind]))
+            outlines.append((o, k, KIND[label]))
     for w, o in enumerate(system.wall_outlines()):
         outlines.append((o, -1 - w, KIND["wall"]))
     v = system.particles.v
-    pts, blocks, offset = [], {}, 0
+    pts: list[np.ndarray] = []
+    blocks: dict[int, dict[str, list]] = {}
+    offset = 0
     for o, owner, kind in outlines:
         n = o.shape[1]
         pts.append(o.T)
@@ -45,15 +47,17 @@ def write_outlines_vtu(path, system) -> None:
     points = np.zeros((offset, 3))
     if pts:
         points[:, :2] = np.concatenate(pts, axis=0)
-    cells, data = [], {"particle": [], "kind": [], "vx": [], "vy": [], "omega": []}
+    cells: list[tuple[str, np.ndarray]] = []
+    data: dict[str, list[np.ndarray]] = {"particle": [], "kind": [], "vx": [], "vy": [],
+                                         "omega": []}
     for n in sorted(blocks):
         b = blocks[n]
         cells.append(("polygon" if n > 3 else "triangle", np.array(b["conn"])))
-        owner = np.array(b["owner"])
-        data["particle"].append(owner)
+        owners = np.array(b["owner"])
+        data["particle"].append(owners)
         data["kind"].append(np.array(b["kind"]))
-        part = owner >= 0
-        idx = np.where(part, owner, 0)
+        part = owners >= 0
+        idx = np.where(part, owners, 0)
         for name, row in (("vx", 0), ("vy", 1), ("omega", 2)):
             data[name].append(np.where(part, v[row, idx] if v.shape[1] else 0.0, 0.0))
     meshio.Mesh(points, cells, cell_data=data).write(str(path))

@@ -133,6 +133,8 @@ class ParticleArrays:
         ``(3, N)`` positions ``(x, y, angle)`` and velocities ``(vx, vy, omega)``.
     mass, inertia, area, density, radius
         ``(N,)`` arrays; ``radius`` is the bounding radius of the shadow.
+    core_area
+        ``(N,)`` areas of the cores (the outlines a fluid sees; buoyancy acts on them).
     shadow_local, core_local
         ``(N, nmax, 2)`` padded outlines relative to the centroid at angle 0;
         ``shadow_count``, ``core_count`` their true vertex counts.
@@ -150,6 +152,7 @@ class ParticleArrays:
         N = len(particles)
         self.density = np.empty(N)
         self.area = np.empty(N)
+        self.core_area = np.empty(N)
         self.inertia = np.empty(N)
         self.q = np.zeros((3, N))
         self.v = np.zeros((3, N))
@@ -182,6 +185,7 @@ class ParticleArrays:
             cores.append(core.vertices - c)
             self.density[k] = rho
             self.area[k] = shape.area
+            self.core_area[k] = core.area
             self.inertia[k] = rho * shape.second_moment
             self.q[:2, k] = shape.centroid
             self.v[:2, k] = vel

@@ -28,12 +28,13 @@ __all__ = ["accumulate", "apply_contact_law", "body_vertices", "broad_phase",
 def reset_forces(system, t: float):
     """Body forces ``(2, N)`` and torques ``(N,)`` before contacts.
 
-    Gravity acts with the buoyancy-reduced weight ``(rho_p - rho_f) A g``;
+    Gravity acts with the buoyancy-reduced weight ``(rho_p A - rho_f A_core) g``: the
+    fluid's buoyancy on the core, the outline the fluid sees, as in coupled runs;
     ``system.external_force``/``external_torque`` are added, and so is every
     callable in ``system.force_callbacks`` (``f(system, t) -> (F, T)``).
     """
     p = system.particles
-    F = np.outer(system.gravity, (p.density - system.fluid_density) * p.area)
+    F = np.outer(system.gravity, p.density * p.area - system.fluid_density * p.core_area)
     F += system.external_force
     T = system.external_torque.copy()
     for f in system.force_callbacks:

@@ -8,10 +8,19 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Polygon", "polygon_properties", "validate_outline"]
+__all__ = ["Polygon", "polygon_area", "polygon_properties", "validate_outline"]
 
 #: relative tolerance of the convexity / degeneracy checks
 GEOMETRY_RTOL = 1e-10
+
+
+def polygon_area(vertices: np.ndarray) -> float:
+    """Signed area of a simple polygon ``(2, N)`` (shoelace formula; positive for
+    counter-clockwise vertices, 0 for fewer than three)."""
+    V = np.asarray(vertices, dtype=float)
+    if V.shape[1] < 3:
+        return 0.0
+    return 0.5 * float(np.sum(V[0] * np.roll(V[1], -1) - np.roll(V[0], -1) * V[1]))
 
 
 def polygon_properties(vertices: np.ndarray) -> tuple[float, np.ndarray, float]:
@@ -92,7 +101,7 @@ def validate_outline(vertices, name: str = "polygon") -> np.ndarray:
             f"{name}.vertices[:, {k}] and [:, {(k + 1) % V.shape[1]}] coincide: "
             "edges must have length > 0 (non-degenerate polygon)"
         )
-    area = 0.5 * float(np.sum(V[0] * np.roll(V[1], -1) - np.roll(V[0], -1) * V[1]))
+    area = polygon_area(V)
     if area <= GEOMETRY_RTOL * scale**2:
         raise ValueError(
             f"{name} has signed area {area:.6g}: must be > 0 "

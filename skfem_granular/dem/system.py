@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import overlap_numba, pipeline
 from .broadphase import NeighbourList, circle_pairs, wall_pairs
@@ -46,7 +48,8 @@ class DEMSystem:
     gravity
         Gravitational acceleration ``(gx, gy)``.
     fluid_density
-        ``rho_f``: gravity acts as ``(rho_p - rho_f) A g`` (0 for dry scenes).
+        ``rho_f``: gravity acts as ``(rho_p A - rho_f A_core) g`` (0 for dry scenes):
+        the buoyancy of the core, the outline a fluid sees, as in coupled runs.
     domain
         Optional box ``(x0, y0, x1, y1)`` every particle must lie inside.
     dt
@@ -139,7 +142,7 @@ class DEMSystem:
         self.inertia = p.inertia
         self.external_force = np.zeros((2, N))
         self.external_torque = np.zeros(N)
-        self.force_callbacks = []
+        self.force_callbacks: list[Callable[[DEMSystem, float], tuple[ArrayLike, ArrayLike]]] = []
         self.force = np.zeros((2, N))
         self.torque = np.zeros(N)
         self.t = 0.0
@@ -158,7 +161,8 @@ class DEMSystem:
 
     # ------------------------------------------------------------------ setup
     @classmethod
-    def in_box(cls, particles, box, wall_thickness: float, **kwargs) -> DEMSystem:
+    def in_box(cls, particles, box: tuple[float, float, float, float], wall_thickness: float,
+               **kwargs) -> DEMSystem:
         """System with :func:`~skfem_granular.dem.box_walls` around ``box = (x0, y0, x1, y1)``."""
         walls = box_walls(*box, wall_thickness) + list(kwargs.pop("walls", []))
         return cls(particles, walls, domain=box, **kwargs)
@@ -167,6 +171,11 @@ class DEMSystem:
     def n(self) -> int:
         """Number of particles."""
         return self.particles.n
+
+    def __repr__(self) -> str:
+        contacts = 0 if self.contacts is None else int(self.contacts.i.size)
+        return (f"DEMSystem({self.n} particles, {self.walls.n} walls, t={self.t:.6g} s after "
+                f"{self.steps} steps of dt<={self.dt:.3g} s, {contacts} contacts)")
 
     @property
     def bodies(self) -> list[Body]:

@@ -6,6 +6,9 @@ from .flow import Flow, SolveReport
 from .properties import Fluid
 from .space import TaylorHood
 from .steady import solve_steady
+from .unsteady import evolve
+from .user_terms import UserTerms
 
 __all__ = ["ConvergenceError", "Flow", "Fluid", "RigidMotion", "SolveReport", "TaylorHood",
+           "UserTerms", "evolve",
            "solve_steady"]

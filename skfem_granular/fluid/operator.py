@@ -19,6 +19,7 @@ from .boundary import DirichletData
 from .geometry import with_data
 from .properties import Fluid
 from .space import TaylorHood
+from .user_terms import UserBlocks, UserTerms
 
 
 class NavierStokesOperator:
@@ -41,6 +42,10 @@ class NavierStokesOperator:
         Force density ``f`` in N/m^3 (constant or ``f(x, y) -> (fx, fy)``).
         The hydrostatic part of gravity is *not* included: pressures are
         dynamic pressures.
+    terms : UserTerms, optional
+        scikit-fem forms added to the momentum and continuity equations
+        (:class:`~skfem_granular.fluid.user_terms.UserTerms`), assembled on the current
+        mesh at the current velocity and at :attr:`time`.
 
     Notes
     -----
@@ -50,7 +55,8 @@ class NavierStokesOperator:
     """
 
     def __init__(self, space: TaylorHood, fluid: Fluid, dirichlet: DirichletData,
-                 convection: bool = False, viscous: str = "auto", body_force=None):
+                 convection: bool = False, viscous: str = "auto", body_force=None,
+                 terms=None):
         if not isinstance(fluid, Fluid):
             raise ValueError("fluid: a skfem_granular.Fluid is required, "
                              f"got {type(fluid).__name__}")
@@ -64,6 +70,13 @@ class NavierStokesOperator:
         self._K_unit = space.K(viscous)  # the space's, unit viscosity (scaled when used)
         self._body_force_spec = body_force
         self.f = self._body_force(body_force)
+        if terms is not None and not isinstance(terms, UserTerms):
+            raise ValueError("terms: a skfem_granular.fluid.UserTerms is required, "
+                             f"got {type(terms).__name__}")
+        self.terms = terms
+        #: the time at which the user terms are assembled (the end of a time step)
+        self.time = 0.0
+        self._user = None  # (time, velocity, UserBlocks) of the last assembly
         nu = space.nu
         fixed = dirichlet.dofs
         self.pinned = dirichlet.closed
@@ -96,6 +109,7 @@ class NavierStokesOperator:
         new.dirichlet = self.dirichlet.moved(space)
         new._K_unit = space.K(self.viscous)
         new._velocity_blocks = {}
+        new._user = None
         for cached in ("_reduced_pattern", "_pressure_weights", "_free_pressure_mass",
                        "_free_pressure_laplace"):
             new.__dict__.pop(cached, None)  # geometric caches: the moved mesh's own
@@ -168,8 +182,9 @@ class NavierStokesOperator:
             self._velocity_blocks[c_mass] = A
         return A
 
-    def matrix(self, A_uu: sp.spmatrix) -> sp.csr_matrix:
-        """Full saddle-point matrix ``[[A, B^T], [B, 0]]``."""
+    def matrix(self, A_uu: sp.spmatrix, C: sp.spmatrix | None = None) -> sp.csr_matrix:
+        """Full saddle-point matrix ``[[A, B^T], [B, 0]]`` (``[B + C, 0]`` below with a
+        user continuity block ``C``)."""
         A = sp.csr_matrix(A_uu)
         if not A.has_canonical_format:
             A = A.copy()
@@ -177,7 +192,43 @@ class NavierStokesOperator:
         # stacking CSR blocks along rows and columns keeps every stored entry in sorted
         # order: the same matrix as sp.bmat (which goes through COO), several times faster
         top = sp.hstack([A, self._Bt], format="csr")
-        return sp.vstack([top, self._B_lower], format="csr")
+        lower = self._B_lower
+        if C is not None:
+            lower = sp.hstack([sp.csr_matrix(self.space.B) + C, self._zero_p], format="csr")
+        return sp.vstack([top, lower], format="csr")
+
+    def linear_matrix(self, A_uu: sp.spmatrix, x: np.ndarray | None = None) -> sp.csr_matrix:
+        """:meth:`matrix` of ``A_uu`` with the user terms' matrices (at ``x``, default
+        where they were last assembled): the matrix of the linear part of the system."""
+        ub = self.user_blocks(x)
+        if ub is None:
+            return self.matrix(A_uu)
+        return self.matrix(A_uu if ub.A is None else A_uu + ub.A, ub.C)
+
+    # user terms -------------------------------------------------------------
+    @property
+    def linear(self) -> bool:
+        """Whether one solve with :meth:`linear_matrix` is exact: no convection and no
+        user terms (whose coefficients may change with the velocity and the time)."""
+        return not self.convection and self.terms is None
+
+    def user_blocks(self, x: np.ndarray | None = None) -> UserBlocks | None:
+        """The user terms assembled on this mesh at :attr:`time` and the velocity of ``x``
+        (default: the velocity of the last assembly, or rest); ``None`` without terms.
+
+        The last assembly is kept: the residual and the Jacobian at one iterate share it.
+        """
+        if self.terms is None:
+            return None
+        held = self._user
+        if x is None:
+            u = held[1] if held is not None else np.zeros(self.space.nu)
+        else:
+            u = x[: self.space.nu]
+        if held is None or held[0] != self.time or not np.array_equal(held[1], u):
+            held = self._user = (self.time, np.array(u, dtype=float),
+                                 self.terms.assemble(self.space, u, self.time))
+        return held[2]
 
     def reduced_bdf2_system(self, a0: float) -> tuple:
         """The linear BDF2-Stokes system for ``a0`` on the free DOFs, ready to factorise.
@@ -188,7 +239,7 @@ class NavierStokesOperator:
         :class:`~skfem_granular.fluid.factor_cache.FactorCache` asks for).
         """
         A_uu = self.velocity_block(a0)
-        return A_uu, self.reduced(self.matrix(A_uu)), self.nu_free, self.solver_blocks(a0)
+        return A_uu, self.reduced(self.linear_matrix(A_uu)), self.nu_free, self.solver_blocks(a0)
 
     def reduced(self, J: sp.spmatrix) -> sp.csr_matrix:
         """Restriction of a full matrix to the free DOFs."""
@@ -227,7 +278,7 @@ class NavierStokesOperator:
         if N is not None:
             N.data *= self.fluid.density
             A = self._plus_convection(A, N)
-        return self.matrix(A)
+        return self.linear_matrix(A, x)
 
     def reduced_jacobian(self, x: np.ndarray, c_mass: float = 0.0,
                          newton: bool = True) -> sp.csr_matrix:
@@ -237,7 +288,7 @@ class NavierStokesOperator:
         and of ``B``, ``B^T`` through an index map built once, without building and
         slicing the full matrix (entries that happen to vanish are kept as zeros).
         """
-        if not self.convection:
+        if not self.convection or self.terms is not None:
             return self.reduced(self.jacobian(x, c_mass, newton))
         kern = self.space.convection
         A = self.velocity_block(c_mass)
@@ -325,7 +376,11 @@ class NavierStokesOperator:
                                                                         self.convection)
         elif self.convection:
             ru = ru + self.fluid.density * sp_.convection.residual(u)
-        return np.concatenate([ru, sp_.B @ u])
+        rp = sp_.B @ u
+        ub = self.user_blocks(x)
+        if ub is not None:
+            ru, rp = _plus_user(ub, u, ru, rp, rhs=True)
+        return np.concatenate([ru, rp])
 
     def jacobian_action(self, x: np.ndarray, dx: np.ndarray, A_uu: sp.spmatrix,
                         w_mesh: np.ndarray | None = None) -> np.ndarray:
@@ -347,7 +402,11 @@ class NavierStokesOperator:
             ru += rho * kern.relative_jacobian_action(u, w_mesh, du)
         elif kern is not None:
             ru += rho * kern.apply(-w_mesh, du)
-        return np.concatenate([ru, sp_.B @ du])
+        rp = sp_.B @ du
+        ub = self.user_blocks(x)
+        if ub is not None:
+            ru, rp = _plus_user(ub, du, ru, rp, rhs=False)
+        return np.concatenate([ru, rp])
 
     def apply_dirichlet(self, x: np.ndarray, t: float | None = None) -> np.ndarray:
         """Write the boundary values (and the pinned pressure) into ``x``."""
@@ -397,3 +456,18 @@ class NavierStokesOperator:
     def ordering(self) -> np.ndarray:
         """Fill-reducing ordering of the free DOFs, computed once for the direct solvers."""
         return self.space.ordering(self.free)
+
+
+def _plus_user(ub: UserBlocks, u: np.ndarray, ru: np.ndarray, rp: np.ndarray,
+               rhs: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The momentum and continuity rows with the user terms' matrices applied to ``u``
+    added (and, with ``rhs``, their right-hand sides subtracted)."""
+    if ub.A is not None:
+        ru = ru + ub.A @ u
+    if ub.C is not None:
+        rp = rp + ub.C @ u
+    if rhs and ub.b is not None:
+        ru = ru - ub.b
+    if rhs and ub.g is not None:
+        rp = rp - ub.g
+    return ru, rp

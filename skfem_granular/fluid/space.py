@@ -22,6 +22,9 @@ from . import forms
 from .convection import ConvectionKernel, element_pattern
 from .ordering import element_incidence, fill_reducing_ordering
 
+#: How the built-in blocks can be assembled (:class:`TaylorHood`'s ``assembly``).
+ASSEMBLIES = ("compiled", "scikit-fem")
+
 #: Quadrature order shared by all bases: the convection integrand on affine
 #: P2 has degree 5, the mass matrix degree 4.
 INTORDER = 5
@@ -36,6 +39,12 @@ class TaylorHood:
         Triangle mesh with named boundaries (``mesh.boundaries``).
     intorder : int, optional
         Quadrature order used for every basis.
+    assembly : {"compiled", "scikit-fem"}
+        How the built-in blocks (``M``, ``K``, ``B``, ``Mp``, the convection) are
+        assembled, on this mesh and on its moved copies: by the compiled kernels
+        (:mod:`~skfem_granular.fluid.geometry`, the default) or by scikit-fem's ``asm``
+        of :mod:`~skfem_granular.fluid.forms` (:mod:`~.forms_assembly`; the same
+        matrices to round-off, on the same patterns; slower).
 
     Attributes
     ----------
@@ -51,9 +60,12 @@ class TaylorHood:
         ``x = [u, p]`` of length ``nu + np_``.
     """
 
-    def __init__(self, mesh: MeshTri, intorder: int = INTORDER):
+    def __init__(self, mesh: MeshTri, intorder: int = INTORDER, assembly: str = "compiled"):
         if not isinstance(mesh, MeshTri):
             raise ValueError(f"mesh: a skfem.MeshTri is required, got {type(mesh).__name__}")
+        if assembly not in ASSEMBLIES:
+            raise ValueError(f"assembly = {assembly!r}: must be one of {ASSEMBLIES}")
+        self.assembly = assembly
         self.mesh = mesh
         self.intorder = intorder
         self.velocity_dofs = Dofs(mesh, ElementVector(ElementTriP2()))
@@ -63,6 +75,10 @@ class TaylorHood:
         self.np_ = self.pressure_dofs.N
         self.N = self.nu + self.np_
         self._viscous_forms = set()  # the viscous forms asked for (see K)
+
+    def __repr__(self) -> str:
+        return (f"TaylorHood(P2/P1 on {self.mesh.p.shape[1]} vertices, {self.mesh.t.shape[1]} "
+                f"triangles: {self.nu} velocity + {self.np_} pressure = {self.N} unknowns)")
 
     def __getattr__(self, name):
         # the scikit-fem bases are built only when something asks for them
@@ -114,7 +130,7 @@ class TaylorHood:
         d = new.__dict__
         # the reference's triangles as they are (sorted once when it was built)
         mesh = dataclasses.replace(ref.mesh, doflocs=p, sort_t=False)
-        d.update(mesh=mesh, intorder=ref.intorder,
+        d.update(mesh=mesh, intorder=ref.intorder, assembly=ref.assembly,
                  nu=ref.nu, np_=ref.np_, N=ref.N, _reference=ref, reference_blocks=rb)
         for topo in ("velocity_dofs", "pressure_dofs", "scalar_dofs", "component",
                      "all_boundary_dofs", "incidence", "p1_to_p2"):
@@ -135,7 +151,12 @@ class TaylorHood:
         """A geometric block of this space (moved or not), from reference-element data: one
         compiled pass over the triangles instead of scikit-fem's ``asm`` of
         :mod:`~skfem_granular.fluid.forms` (the same matrices to 1e-13, tested; a remesh
-        builds them for every new mesh)."""
+        builds them for every new mesh). With ``assembly="scikit-fem"``: ``asm`` of the form
+        (:func:`~.forms_assembly.block`)."""
+        if self.assembly == "scikit-fem":
+            from .forms_assembly import block
+
+            return block(self, name)
         # a moved space builds its blocks together (a viscous form nobody asked for before
         # is built on its own)
         if self.reference is not self and name in self._moved_geometry:
@@ -198,6 +219,8 @@ class TaylorHood:
     @cached_property
     def Mp(self) -> sp.csr_matrix:
         """Pressure mass matrix."""
+        if self.assembly == "scikit-fem":
+            return asm(forms.pressure_mass, self.pb).tocsr()
         return self.reference_blocks.pressure_mass(self.mesh.p)  # from the determinants
 
     @cached_property
@@ -207,7 +230,12 @@ class TaylorHood:
 
     @cached_property
     def convection(self) -> ConvectionKernel:
-        """Fast convection evaluation on this mesh."""
+        """Fast convection evaluation on this mesh (``asm`` of the forms with
+        ``assembly="scikit-fem"``: :class:`~.forms_assembly.FormsConvection`)."""
+        if self.assembly == "scikit-fem":
+            from .forms_assembly import FormsConvection
+
+            return FormsConvection(self)
         if self.reference is not self:
             return self.reference.convection.with_maps(self._moved_geometry["maps"])
         rb = self.reference_blocks

@@ -29,10 +29,30 @@ def as_space(mesh_or_space) -> TaylorHood:
     return mesh_or_space if isinstance(mesh_or_space, TaylorHood) else TaylorHood(mesh_or_space)
 
 
+def _newton_or_continuation(space, fluid, velocity, initial, options: dict,
+                            t_start: float) -> Flow:
+    """Newton from ``initial``; if it fails, the path through larger viscosities
+    (:func:`~.continuation.viscosity_continuation`), recorded in ``flow.report``."""
+    try:
+        return solve_steady(space, fluid, velocity, True, initial=initial, continuation="off",
+                            **options)
+    except ConvergenceError:
+        pass
+
+    def stage(fl, start):  # from a close guess Newton needs few iterations, or fails
+        return solve_steady(space, fl, velocity, True, initial=start, continuation="off",
+                            **dict(options, maxiter=min(options["maxiter"], STAGE_MAXITER)))
+
+    flow, stages = viscosity_continuation(stage, fluid)
+    flow.report.continuation = stages
+    flow.report.wall_time["total"] = time.perf_counter() - t_start
+    return flow
+
+
 def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *,
                  body_force=None, viscous: str = "auto", solver="auto", tol: float = 1e-10,
                  maxiter: int = 25, initial: Flow | np.ndarray | None = None,
-                 continuation: str = "auto") -> Flow:
+                 continuation: str = "auto", terms=None) -> Flow:
     """Solve the steady Stokes or Navier-Stokes equations.
 
     Parameters
@@ -66,6 +86,11 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
         residual :data:`DIVERGED` times above the best one seen), reach the solution
         through larger viscosities (:func:`~.continuation.viscosity_continuation`);
         the path is in ``flow.report.continuation``. ``"off"``: raise instead.
+    terms : UserTerms, optional
+        scikit-fem forms added to the momentum and continuity equations
+        (:class:`~skfem_granular.fluid.user_terms.UserTerms`; ``w["t"]`` is 0). With
+        them the solve is Newton's iteration even without convection (a form's
+        coefficients may read the velocity ``w["u"]``).
 
     Returns
     -------
@@ -85,25 +110,12 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
     space = as_space(mesh)
     if convection and continuation == "auto":
         options = dict(body_force=body_force, viscous=viscous, solver=solver, tol=tol,
-                       maxiter=maxiter)
-        try:
-            return solve_steady(space, fluid, velocity, True, initial=initial,
-                                continuation="off", **options)
-        except ConvergenceError:
-            pass
-
-        def stage(fl, start):  # from a close guess Newton needs few iterations, or fails
-            return solve_steady(space, fl, velocity, True, initial=start, continuation="off",
-                                **dict(options, maxiter=min(maxiter, STAGE_MAXITER)))
-
-        flow, stages = viscosity_continuation(stage, fluid)
-        flow.report.continuation = stages
-        flow.report.wall_time["total"] = time.perf_counter() - t_start
-        return flow
+                       maxiter=maxiter, terms=terms)
+        return _newton_or_continuation(space, fluid, velocity, initial, options, t_start)
     op = NavierStokesOperator(space, fluid, DirichletData(space, velocity), convection=convection,
-                              viscous=viscous, body_force=body_force)
+                              viscous=viscous, body_force=body_force, terms=terms)
     times = {"setup": time.perf_counter() - t_start, "assembly": 0.0, "solve": 0.0}
-    lin = make_solver(solver, op.free.size, once=not convection)  # Stokes: one factorisation
+    lin = make_solver(solver, op.free.size, once=op.linear)  # Stokes: one factorisation
     free = op.free
 
     def linear_solve(Jr, r, newton=False):
@@ -126,7 +138,7 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
     # reference size: the residual of the zero-interior state with boundary data
     r = op.residual(x)
     ref = max(np.linalg.norm(r[free]), 1e-300)
-    if not convection:
+    if op.linear:
         t0 = time.perf_counter()
         J = op.reduced_jacobian(x)
         times["assembly"] += time.perf_counter() - t0
@@ -144,7 +156,7 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
             t0 = time.perf_counter()
             # a Stokes matrix for the first step from a zero interior, Newton after
             J = (op.reduced_jacobian(x) if (it > 1 or initial is not None)
-                 else op.reduced(op.matrix(op.velocity_block())))
+                 else op.reduced(op.linear_matrix(op.velocity_block(), x)))
             times["assembly"] += time.perf_counter() - t0
             return linear_solve(J, r, newton=True)
 

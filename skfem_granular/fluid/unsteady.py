@@ -95,20 +95,26 @@ class BDF2Integrator:
     refactor_iterations : int
         On a moving mesh: refactorise after a step that needed more chord
         iterations than this.
+    terms : UserTerms, optional
+        scikit-fem forms added to the momentum and continuity equations
+        (:class:`~skfem_granular.fluid.user_terms.UserTerms`), assembled at the end of
+        each step (``w["t"] = t + dt``, on the mesh there) at every corrector iterate.
+        The chord operator holds their matrices where it was factorised; with them the
+        corrector iterates to ``newton_tol`` even for Stokes.
     """
 
     def __init__(self, mesh, fluid, velocity: dict, *, convection: bool = True, u0=None,
                  t0: float = 0.0, body_force=None, viscous: str = "auto", solver="auto",
                  newton_tol: float = 1e-8, max_iterations: int = 12,
                  velocity_scale: float | None = None, scheme: str = "bdf2",
-                 mesh_motion=None, refactor_iterations: int = 6):
+                 mesh_motion=None, refactor_iterations: int = 6, terms=None):
         if scheme not in ("bdf2", "euler"):
             raise ValueError(f"scheme = {scheme!r}: must be 'bdf2' or 'euler'")
         self.scheme = scheme
         self.space = as_space(mesh)
         self.op = NavierStokesOperator(self.space, fluid, DirichletData(self.space, velocity),
                                        convection=convection, viscous=viscous,
-                                       body_force=body_force)
+                                       body_force=body_force, terms=terms)
         self.fluid = fluid
         self.newton_tol = positive("newton_tol", newton_tol)
         self.max_iterations = int(max_iterations)
@@ -227,6 +233,7 @@ class BDF2Integrator:
         hist = a1 * u_n if self.u_prev is None else a1 * u_n + a2 * self.u_prev
         t0 = time.perf_counter()
         op, w_mesh = self._moved_operator(dt, a0, a1, a2)
+        op.time = self.t + dt  # where the user terms are assembled
         sp_ = op.space
         rhs_u = -rho * (sp_.M @ hist)
         t_op = time.perf_counter()
@@ -243,7 +250,7 @@ class BDF2Integrator:
         # Navier-Stokes: the chord loop re-evaluates the exact residual, so the correction
         # needs no refinement (same iterates to ~1e-13, 2x fewer triangular solves); Stokes
         # steps stop after one exact solve
-        solve = self.solver.solve_correction if op.convection else self.solver.solve
+        solve = self.solver.solve_correction if not op.linear else self.solver.solve
         it_state = {"scale": max(float(np.abs(u_n).max()), self.velocity_scale),
                     "gmres": False, "prev": None, "dnorm": math.nan}
 
@@ -263,7 +270,7 @@ class BDF2Integrator:
             return dx
 
         def stop(it, dx, x):
-            if not op.convection and w_mesh is None:
+            if op.linear and w_mesh is None:
                 return True
             dnorm = float(np.abs(dx[: op.nu_free]).max())
             it_state["dnorm"] = dnorm
@@ -356,7 +363,7 @@ def evolve(mesh, fluid, velocity: dict, *, dt: float, t_end: float, adaptive: bo
         of one attempt after a corrector failure (:func:`~skfem_granular.timestep.accept_step`).
     **options
         Passed to :class:`BDF2Integrator` (``convection``, ``u0``, ``t0``,
-        ``body_force``, ``solver``, ...).
+        ``body_force``, ``solver``, ``terms``, ...).
 
     Yields
     ------

@@ -29,6 +29,15 @@ MAX_HEADER_BYTES = 16_000_000
 MAX_DEPTH = 64
 
 
+def _member(name: str) -> zipfile.ZipInfo:
+    """A stored member dated 1980-01-01: the same content gives the same file bytes
+    (a member dated by the clock made two equal checkpoints differ when their writes
+    fell into different seconds)."""
+    info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+    info.compress_type = zipfile.ZIP_STORED
+    return info
+
+
 def write(path, header: dict, arrays: dict[str, np.ndarray], *, fsync: bool = False) -> Path:
     """Write ``header`` (JSON) and ``arrays`` (``.npy`` members) as one zip, atomically."""
     text = json.dumps(header, allow_nan=False, separators=(",", ":")).encode()
@@ -38,12 +47,9 @@ def write(path, header: dict, arrays: dict[str, np.ndarray], *, fsync: bool = Fa
 
     def save(tmp):
         with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
-            # a fixed time stamp (the arrays' default, 1980-01-01), not the clock's: the same
-            # run writes the same bytes (two runs' checkpoints compared by hash differed
-            # when their writes fell in different 2-second zip time steps)
-            zf.writestr(zipfile.ZipInfo(HEADER_MEMBER), text)
+            zf.writestr(_member(HEADER_MEMBER), text)
             for key, a in arrays.items():
-                with zf.open(f"{key}.npy", "w", force_zip64=True) as f:
+                with zf.open(_member(f"{key}.npy"), "w", force_zip64=True) as f:
                     np.lib.format.write_array(f, np.asanyarray(a), allow_pickle=False)
 
     return atomic_write(path, save, fsync=fsync)
@@ -114,7 +120,7 @@ def _read_header(zf: zipfile.ZipFile, where: str) -> dict:
 
 def _declared_arrays(header: dict, where: str) -> dict[str, tuple]:
     """``{key: (dtype, shape)}`` of the header's ``$array`` nodes; refuses a deep header."""
-    found = {}
+    found: dict[str, tuple] = {}
     todo = [(header, 0)]
     while todo:
         node, depth = todo.pop()
@@ -126,7 +132,9 @@ def _declared_arrays(header: dict, where: str) -> dict[str, tuple]:
             key, shape = node.get("$array"), node.get("shape")
             if isinstance(key, str) and isinstance(shape, list) and all(
                     isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in shape):
-                found.setdefault(key, (MEMORY_DTYPES.get(node.get("dtype")), tuple(shape)))
+                dtype = node.get("dtype")
+                found.setdefault(key, (MEMORY_DTYPES.get(dtype) if isinstance(dtype, str)
+                                       else None, tuple(shape)))
             todo.extend((x, depth + 1) for x in node.values())
     return found
 

@@ -36,6 +36,7 @@ import dataclasses
 import math
 import re
 from collections.abc import Callable, Iterable
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -108,7 +109,9 @@ class Registry:
 
     def __init__(self, dataclasses: Iterable[type] = (), custom: Iterable[Custom] = ()):
         self._encoders: dict[type, tuple[str, Callable]] = {}
-        self._decoders: dict[str, tuple[Callable, tuple, dict]] = {}
+        # name -> (build from a dict of fields, field names (None: a dataclass's), dataclass)
+        self._decoders: dict[str, tuple[Callable[[dict], Any], tuple[str, ...] | None,
+                                        type | None]] = {}
         for cls in dataclasses:
             self.add_dataclass(cls)
         for c in custom:
@@ -239,7 +242,7 @@ class _Reader:
         self.nonfinite_ok = nonfinite_ok
         self.used: set[str] = set()
 
-    def fail(self, path: str, problem: str):
+    def fail(self, path: str, problem: str) -> NoReturn:
         raise ValueError(f"{self.where}: {path or '(top)'}: {problem}")
 
     def keys(self, path: str, node: dict, expected: set):
@@ -271,7 +274,7 @@ class _Reader:
         tag = tags[0]
         self.keys(path, n, _TAGS[tag])
         if tag == "$float":
-            if n["$float"] not in _NONFINITE:
+            if not isinstance(n["$float"], str) or n["$float"] not in _NONFINITE:
                 self.fail(path, f"$float = {n['$float']!r}: must be 'nan', 'inf' or '-inf'")
             if not (finite_default or self.nonfinite_ok(path)):
                 self.fail(path, f"= {n['$float']}: must be a finite number")
@@ -288,7 +291,7 @@ class _Reader:
             return {k: self.node(x, _join(path, k)) for k, x in d.items()}
         if tag == "$numpy":
             name = n["$numpy"]
-            if name not in SCALAR_TYPES:
+            if not isinstance(name, str) or name not in SCALAR_TYPES:
                 self.fail(path, f"numpy scalar type {name!r}: must be one of "
                                 f"{', '.join(SCALAR_TYPES)}")
             v = self.node(n["value"], path, finite_default)
@@ -311,7 +314,7 @@ class _Reader:
             self.fail(path, f"array {key!r} is not in the file")
         if key in self.used:
             self.fail(path, f"array {key!r} is named twice in the header")
-        if dtype not in MEMORY_DTYPES:
+        if not isinstance(dtype, str) or dtype not in MEMORY_DTYPES:
             self.fail(path, f"dtype {dtype!r}: must be one of {', '.join(MEMORY_DTYPES)}")
         if not (isinstance(shape, list)
                 and all(isinstance(s, int) and not isinstance(s, bool) and s >= 0

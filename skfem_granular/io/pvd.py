@@ -29,7 +29,7 @@ class PVDSeries:
     ...         series.write(t, lambda f: state.save(f))
     """
 
-    def __init__(self, path):
+    def __init__(self, path) -> None:
         self.path = Path(path)
         if self.path.suffix != ".pvd":
             raise ValueError(f"path = {str(path)!r}: a time series must end in '.pvd'")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -40,7 +41,7 @@ class Table:
 
     def __init__(self, n_particles: int):
         self.K = int(n_particles)
-        self.rows = []
+        self.rows: list[dict[str, Any]] = []
 
     def add_row(self, **values) -> None:
         """Append one step; missing step values are NaN, missing particle values 0."""
@@ -91,13 +92,32 @@ class Table:
             first step column and ``particle`` first, then the particle columns,
             then the other step columns.
         """
-        T, K = len(self.rows), self.K
-        steps, parts = self.STEP_COLUMNS, self.PARTICLE_COLUMNS
         if layout == "wide":
             text = ",".join(self.wide_header()) + "\n" + self.wide_lines()
             atomic_write(path, lambda tmp: Path(tmp).write_text(text))
             return
-        if layout == "long":
+        head, data = self.columns(layout)
+
+        def write(tmp):
+            np.savetxt(tmp, data, delimiter=",", header=",".join(head), comments="", fmt=CSV_FORMAT)
+
+        atomic_write(path, write)
+
+    def columns(self, layout: str = "wide") -> tuple[list[str], np.ndarray]:
+        """Column names and values ``(rows, columns)`` of the table in a layout.
+
+        Parameters
+        ----------
+        layout : {"wide", "long"}
+            As in :meth:`to_csv`.
+        """
+        T, K = len(self.rows), self.K
+        steps, parts = self.STEP_COLUMNS, self.PARTICLE_COLUMNS
+        if layout == "wide":
+            head = self.wide_header()
+            cols = ([getattr(self, c) for c in steps]
+                    + [getattr(self, c)[:, k] for k in range(K) for c in parts])
+        elif layout == "long":
             first, rest = steps[:1], steps[1:]
             head = list(first) + ["particle"] + list(parts) + list(rest)
             cols = ([np.repeat(getattr(self, c), K) for c in first]
@@ -106,12 +126,29 @@ class Table:
                     + [np.repeat(getattr(self, c), K) for c in rest])
         else:
             raise ValueError(f"layout = {layout!r}: must be 'wide' or 'long'")
-        data = np.column_stack(cols) if T else np.zeros((0, len(head)))
+        data = np.column_stack(cols).astype(float) if T else np.zeros((0, len(head)))
+        return head, data
 
-        def write(tmp):
-            np.savetxt(tmp, data, delimiter=",", header=",".join(head), comments="", fmt=CSV_FORMAT)
+    def to_pandas(self, layout: str = "long"):
+        """The table as a :class:`pandas.DataFrame` (pandas: the ``pandas`` extra).
 
-        atomic_write(path, write)
+        Parameters
+        ----------
+        layout : {"long", "wide"}
+            ``"long"`` (default, tidy): one row per step and particle, with an integer
+            ``particle`` column; ``"wide"``: one row per step, columns ``x_0``, ``y_0``, ...
+            as in :meth:`to_csv`.
+        """
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("to_pandas needs pandas: pip install 'skfem-granular[pandas]' "
+                              "(or pip install pandas)") from None
+        head, data = self.columns(layout)
+        frame = pd.DataFrame(data, columns=head)
+        if "particle" in frame:
+            frame["particle"] = frame["particle"].astype(int)
+        return frame
 
 
 class History(Table):
@@ -169,7 +206,7 @@ class CSVLog:
         self.written = len(table.rows)
         text = ",".join(table.wide_header()) + "\n" + table.wide_lines(0, self.written)
         atomic_write(self.path, lambda tmp: Path(tmp).write_text(text))
-        self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_APPEND)
 
     @property
     def closed(self) -> bool:

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dem.polygon import polygon_area
+
 __all__ = ["clipped_area", "solid_fraction"]
 
 
@@ -29,24 +31,17 @@ def _clip(P: np.ndarray, axis: int, value: float, keep_below: bool) -> np.ndarra
     return np.array(out).T if out else np.zeros((2, 0))
 
 
-def _area(P: np.ndarray) -> float:
-    if P.shape[1] < 3:
-        return 0.0
-    x, y = P
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-
-
 def clipped_area(outline: np.ndarray, window) -> float:
     """Area of the convex ``outline`` (2, k) inside ``window = (x0, y0, x1, y1)``."""
     x0, y0, x1, y1 = window
     P = np.asarray(outline, dtype=float)
     if P[0].min() >= x0 and P[0].max() <= x1 and P[1].min() >= y0 and P[1].max() <= y1:
-        return _area(P)
+        return polygon_area(P)
     if P[0].max() <= x0 or P[0].min() >= x1 or P[1].max() <= y0 or P[1].min() >= y1:
         return 0.0
     for axis, value, below in ((0, x0, False), (0, x1, True), (1, y0, False), (1, y1, True)):
         P = _clip(P, axis, value, below)
-    return _area(P)
+    return polygon_area(P)
 
 
 def solid_fraction(outlines, window) -> float:

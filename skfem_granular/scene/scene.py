@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 import tomllib
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -85,6 +85,14 @@ class Scene:
     checkpoint_every: int = 0
     name: str = "scene"
     overlap_tolerance: float = 1e-3
+
+    def __repr__(self) -> str:
+        on = [f.name for f in fields(self.effects) if getattr(self.effects, f.name) is True]
+        fluid = ("dry" if self.fluid is None or not self.effects.fluid else
+                 f"fluid rho={self.fluid.density:g} mu={self.fluid.viscosity:g}")
+        return (f"Scene({self.name!r}: {len(self.particles)} particles in {self.domain}, "
+                f"{fluid}, mesh {self.mesh.kind!r}, t_end={self.time.t_end:g} s "
+                f"dt={self.time.dt:g} s, effects {'+'.join(on) or 'none'})")
 
     @property
     def moving_mesh(self) -> bool:

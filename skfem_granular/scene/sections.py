@@ -59,6 +59,9 @@ class MeshSpec:
     ``kind``: ``"auto"`` (default: ``"graded"`` concentric circles for one
     particle, the ``"field"`` size-field mesh for more), ``"graded"``,
     ``"field"``, ``"uniform"`` or ``"group"`` (the paper's Fig. 13).
+    ``gap_spacing`` (``"field"`` meshes only): outline node spacing along narrow gaps
+    as a fraction of the gap's width, ``>= 0.1`` (default 1/3; a large value such as
+    100 leaves the gaps unlined).
 
     ``wake`` (default true): a ``"graded"`` mesh with the default ``sigma`` is
     remeshed with finer circles while a particle's Reynolds number is above 40
@@ -70,6 +73,7 @@ class MeshSpec:
     delta_l: float | None = None
     sigma: float | None = None
     h: float | None = None
+    gap_spacing: float | None = None
     wake: bool = True
 
     def __post_init__(self):
@@ -82,6 +86,12 @@ class MeshSpec:
         object.__setattr__(self, "h", num("mesh", "h", self.h, lo=0, allow_none=True))
         if self.sigma is not None:
             object.__setattr__(self, "sigma", num("mesh", "sigma", self.sigma, lo=1.0, hi=1.6))
+        if self.gap_spacing is not None:
+            object.__setattr__(self, "gap_spacing", num("mesh", "gap_spacing", self.gap_spacing,
+                                                        lo=0.1, lo_open=False))
+            if self.kind not in ("auto", "field"):
+                raise ValueError(f"mesh.gap_spacing: only for kind 'field' (or 'auto' with "
+                                 f"several particles), not {self.kind!r}")
         if not isinstance(self.wake, bool):
             raise ValueError(f"mesh.wake = {self.wake!r}: must be true or false")
 

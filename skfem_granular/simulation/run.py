@@ -100,6 +100,14 @@ class Simulation:
         Limits on steps, mesh triangles and memory, checked against estimates before
         the mesh is built (:mod:`~skfem_granular.simulation.budget`; default
         ``Budget()``); a run beyond them raises a ``BudgetError`` (a ``ValueError``).
+    terms : UserTerms, optional
+        scikit-fem forms added to the fluid's momentum and continuity equations
+        (:class:`~skfem_granular.fluid.UserTerms`, docs: user forms); a checkpoint does
+        not hold them: give them again to :meth:`resume`.
+    assembly : {"compiled", "scikit-fem"}
+        How the fluid's built-in blocks are assembled: the compiled kernels (default)
+        or scikit-fem's ``asm`` of :mod:`skfem_granular.fluid.forms` (the same run to
+        round-off, slower; :class:`~skfem_granular.fluid.TaylorHood`).
 
     Examples
     --------
@@ -109,7 +117,7 @@ class Simulation:
     """
 
     def __init__(self, scene: Scene, output_dir=None, *, mesh=None, overwrite: bool = False,
-                 budget: Budget | None = None):
+                 budget: Budget | None = None, terms=None, assembly: str = "compiled"):
         if not isinstance(scene, Scene):
             scene = Scene.from_toml(scene)
         self.scene = scene
@@ -157,11 +165,12 @@ class Simulation:
             self.timings["meshing"] += time.perf_counter() - t0
             self.stepper = CoupledStepper(scene, self.dem, mesh,
                                           contacts_active=self.contacts_active,
-                                          timings=self.timings)
+                                          timings=self.timings, terms=terms,
+                                          assembly=assembly)
 
     @classmethod
     def resume(cls, directory, t_end: float | None = None, *,
-               budget: Budget | None = None) -> Simulation:
+               budget: Budget | None = None, terms=None) -> Simulation:
         """Continue a run from the checkpoint in ``directory``.
 
         Parameters
@@ -172,6 +181,8 @@ class Simulation:
             New end time (default: the scene's).
         budget : Budget, optional
             Limits the continued run is checked against (see :class:`Simulation`).
+        terms : UserTerms, optional
+            The user forms of the fluid the run was started with (not in the checkpoint).
 
         Returns
         -------
@@ -203,7 +214,7 @@ class Simulation:
             scene = replace(scene, time=replace(scene.time, t_end=t_end))
         saved = data["stepper"]
         sim = cls(replace(scene, output_dir=None), mesh=saved.get("mesh"),  # no folder check
-                  budget=budget)
+                  budget=budget, terms=terms)
         sim.scene, sim.output_dir, sim.folder = scene, Path(directory), folder
         # the entries this version's stepper and DEM hand over, no more and no fewer
         where = f"checkpoint {str(Path(directory) / checkpoint.FILENAME)!r}"
@@ -214,13 +225,20 @@ class Simulation:
             sim.stepper.steps_taken = saved["steps_taken"]
         else:
             sim.stepper = CoupledStepper.from_checkpoint_state(
-                scene, sim.dem, saved, contacts_active=sim.contacts_active, timings=sim.timings)
+                scene, sim.dem, saved, contacts_active=sim.contacts_active, timings=sim.timings,
+                terms=terms)
         sim.history.rows = list(data["history"])
         sim.steps_done = data["k"]
         sim._resumed_frames = data["frames"]
         return sim
 
     # ------------------------------------------------------------------ views
+    def __repr__(self) -> str:
+        kind = "dry" if self.scene.dry else repr(self.stepper).split("(", 1)[1].rstrip(")")
+        out = "no output" if self.output_dir is None else f"output {str(self.output_dir)!r}"
+        return (f"Simulation({self.scene.name!r}, t_end={self.scene.time.t_end:g} s: {kind}; "
+                f"{out})")
+
     def _coupled(self, name):
         if self.scene.dry:
             raise AttributeError(f"a dry scene has no {name}")

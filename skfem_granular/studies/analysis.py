@@ -4,6 +4,7 @@ against the reference and the rounding measures, fitted orders and the sweet spo
 from __future__ import annotations
 
 from dataclasses import asdict
+from typing import Any
 
 import numpy as np
 
@@ -30,7 +31,7 @@ def analyse(study, runs, records) -> list[dict]:
         if rec is None:
             continue
         ref = _ref_key(study, runs, r)
-        row = {c: None for c in COLUMNS}
+        row: dict[str, Any] = {c: None for c in COLUMNS}
         row.update({k: v for k, v in asdict(r).items() if k in COLUMNS})
         row.update(key=r.key, vertices=rec["vertices"], p2_nodes=rec["p2_nodes"], dofs=rec["dofs"],
                    wall_time=rec["wall"]["total"], peak_rss_mb=rec["peak_rss_mb"],

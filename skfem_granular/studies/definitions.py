@@ -10,12 +10,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TypedDict
 
 from ..scene import bundled
 
 STUDIES = ("single-particle", "faxen")
 SCENE = bundled("single_particle")
-FAXEN = {"box": (-3.0, -1.0, 3.0, 1.0), "a": 0.2, "l": 1.0}
+
+
+class _Channel(TypedDict):
+    box: tuple[float, float, float, float]
+    a: float
+    l: float
+
+
+#: the Faxen channel: its box, the disk's radius ``a`` and the channel's half-width ``l``
+FAXEN: _Channel = {"box": (-3.0, -1.0, 3.0, 1.0), "a": 0.2, "l": 1.0}
 COLUMNS = ("key", "family", "kind", "n_sides", "h", "delta_l", "sigma", "dt", "seed",
            "vertices", "p2_nodes", "dofs", "wall_time", "wall_meshing", "wall_assembly",
            "wall_solve", "wall_other", "wall_warmup", "peak_rss_mb", "quantity", "value",
@@ -62,6 +72,10 @@ def plan(study: str, smoke: bool = False) -> list[Run]:
         return _plan_faxen(smoke)
     e = 2 * 0.5e-3 * math.sin(math.pi / 24)  # the scene's 24-gon outline edge
     dt0, t_end = 1e-5, (1e-4 if smoke else None)
+    uni: list[tuple[float, float | None]]  # (h, delta_l)
+    gra: list[tuple[float | None, float | None]]  # (delta_l, sigma)
+    dts: tuple[float, ...]
+    seeds: dict[str, list[float | None]]  # the runs renumbered: their delta_l / h
     if smoke:
         uni = [(0.26e-3, None), (e, None)]
         gra = [(None, None), (None, 1.5), (e / 2, None)]

@@ -72,7 +72,8 @@ def run_study(study: str, out_dir, *, smoke: bool = False, executor: Executor | 
     if todo and executor is None:
         own = executor = _local_pool(workers)
     try:
-        futs = {executor.submit(execute, study, r): r for r in todo}
+        # no executor only when there is nothing to do
+        futs = {} if executor is None else {executor.submit(execute, study, r): r for r in todo}
         for fut in as_completed(futs):
             r = futs[fut]
             try:

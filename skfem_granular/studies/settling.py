@@ -1,4 +1,4 @@
-"""Accuracy against cost on a moving case: the settling disk of issue 14's check 2.
+"""Accuracy against cost on a moving case: the settling disk of the sedimentation checks.
 
 The scene is ``settling_disk_channel`` (Glowinski et al. 2001; Wan & Turek
 2006: a 2.5 mm disk, 1250 kg/m^3, released at rest in a closed 2 cm x 6 cm
@@ -158,10 +158,10 @@ def execute(run: SettlingRun) -> dict:
 def fall_time(t, y, fall: float) -> float:
     """First time ``y`` is ``fall`` below ``y[0]`` (linear between samples; NaN if never)."""
     t, y = np.asarray(t, float), np.asarray(y, float)
-    k = np.flatnonzero(y <= y[0] - fall)
-    if k.size == 0:
+    below = np.flatnonzero(y <= y[0] - fall)
+    if below.size == 0:
         return float("nan")
-    k = int(k[0])
+    k = int(below[0])
     if k == 0:
         return float(t[0])
     y1 = y[0] - fall

@@ -26,7 +26,7 @@ def write_tables(rows, out_dir, study, smoke) -> list[Path]:
         w = csv.DictWriter(fh, fieldnames=COLUMNS)
         w.writeheader()
         w.writerows({c: _fmt(r[c], full=True) for c in COLUMNS} for r in rows)
-    cols = (
+    cols: tuple[str, ...] = (
         "family",
         "n_sides" if study == "faxen" else "h",
         "delta_l",

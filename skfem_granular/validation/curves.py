@@ -43,6 +43,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
@@ -109,7 +110,7 @@ def available_curves() -> list[str]:
     return [n[len(PREFIX):] for n in available() if n.startswith(PREFIX)]
 
 
-def _fail(where: str, msg: str):
+def _fail(where: str, msg: str) -> NoReturn:
     raise ValueError(f"{where}: {msg}")
 
 
@@ -121,7 +122,7 @@ def _units(where: str, defined) -> dict:
     if not isinstance(defined, dict):
         _fail(where, "units must be an object {name: {\"value\": ..., \"unit\": ...}}")
     for name, d in defined.items():
-        ok = (isinstance(d, dict) and d.get("unit") in UNITS
+        ok = (isinstance(d, dict) and isinstance(d.get("unit"), str) and d["unit"] in UNITS
               and isinstance(d.get("value"), int | float) and np.isfinite(d["value"])
               and d["value"] > 0)
         if not ok:
@@ -134,7 +135,7 @@ def _units(where: str, defined) -> dict:
 def _column(where: str, key: str, col, units: dict) -> np.ndarray:
     if not isinstance(col, dict) or "values" not in col or "unit" not in col:
         _fail(where, f"columns.{key} must be {{\"unit\": ..., \"values\": [...]}}")
-    if col["unit"] not in units:
+    if not isinstance(col["unit"], str) or col["unit"] not in units:
         _fail(where, f"columns.{key}.unit = {col['unit']!r}: must be one of "
                      f"{', '.join(units)}")
     try:
@@ -163,7 +164,7 @@ def curve_from_dict(data: dict, where: str = "curve") -> Curve:
     units = _units(where, data.get("units"))
     columns = {k: _column(where, k, c, units) for k, c in cols.items()}
     x = data.get("x")
-    if x not in columns:
+    if not isinstance(x, str) or x not in columns:
         _fail(where, f"x = {x!r}: must name a column ({', '.join(columns)})")
     n = columns[x].size
     for k, v in columns.items():

@@ -48,7 +48,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..fluid import ConvergenceError, Fluid, TaylorHood, solve_steady
+from ..fluid import ConvergenceError, Flow, Fluid, TaylorHood, solve_steady
 
 __all__ = ["FrameProblem", "TerminalResult", "faxen_drag_coefficient", "frame_drag",
            "frame_mesh", "terminal_velocity_frame_solve"]
@@ -193,6 +193,7 @@ def frame_mesh(problem: FrameProblem):
     from ..dem import Polygon
 
     W, up, down = problem.width, problem.upstream, problem.downstream
+    assert up is not None and down is not None  # set by FrameProblem.__post_init__
     disk = Polygon.regular(problem.sides, problem.radius, center=(0.5 * W, up),
                            angle=problem.angle).vertices
     return meshing.build("graded", (0.0, 0.0, W, up + down), [disk],
@@ -290,7 +291,8 @@ def terminal_velocity_frame_solve(problem, *, rtol: float = 1e-6, maxiter: int =
               "rel_error": float(cs / faxen_drag_coefficient(problem.k) - 1.0)}
     Us = Wb / problem.mu / cs
     history = []
-    solved = []  # (U, flow) of converged Navier-Stokes solves, for continuation
+    # (U, flow) of converged Navier-Stokes solves, for continuation
+    solved: list[tuple[float, Flow]] = []
 
     def solve(U, depth=0):
         """Navier-Stokes at ``U`` from the nearest converged flow (scaled to ``U``);

@@ -9,6 +9,7 @@ and ``imageio-ffmpeg``.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +28,9 @@ from ._common import (
     z_offsets,
 )
 from .layers import draw
+
+if TYPE_CHECKING:
+    from PIL import Image
 
 
 def render_series(
@@ -137,12 +141,14 @@ class _GifWriter:
     """Collects frames and writes an animated GIF with Pillow on close."""
 
     def __init__(self, path: Path, fps: float):
-        self.path, self.fps, self.frames = path, fps, []
+        self.path, self.fps = path, fps
+        self.frames: list[Image.Image] = []
 
     def append(self, image) -> None:
         from PIL import Image
 
-        self.frames.append(Image.fromarray(image).quantize(colors=255, dither=0))
+        self.frames.append(Image.fromarray(image).quantize(colors=255,
+                                                           dither=Image.Dither.NONE))
 
     def close(self) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)

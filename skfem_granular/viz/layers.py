@@ -52,108 +52,130 @@ def draw(
     particle cores, shadow outlines, core outlines) that keep the overlays
     in front of the field.
     """
-    cmap, unit, _, ink = FIELDS[field]
+    ink = FIELDS[field][3]
     surface = _surface(pv, flow)
     if field == "mesh":
-        # straight edges of the P2 triangles through their corner nodes
-        cells = flow.cells_dict[pv.CellType.QUADRATIC_TRIANGLE][:, :3]
-        faces = np.column_stack([np.full(len(cells), 3), cells]).ravel()
-        linear = pv.PolyData(flow.points, faces=faces)
-        pl.add_mesh(linear, color="white", lighting=False)
-        pl.add_mesh(
-            linear.translate((0, 0, z[0])),
-            style="wireframe",
-            color=MESH_EDGE,
-            line_width=1,
-            lighting=False,
-        )
+        _draw_mesh(pl, pv, flow, z[0])
     else:
-        actor = pl.add_mesh(
-            surface,
-            scalars=field,
-            cmap=cmap,
-            clim=clim,
-            lighting=False,
-            interpolate_before_map=True,
-            show_scalar_bar=False,
-        )
-        if edges:
-            cells = flow.cells_dict[pv.CellType.QUADRATIC_TRIANGLE][:, :3]
-            faces = np.column_stack([np.full(len(cells), 3), cells]).ravel()
-            pl.add_mesh(
-                pv.PolyData(flow.points, faces=faces).translate((0, 0, z[0])),
-                style="wireframe",
-                color="white",
-                opacity=0.35,
-                line_width=1,
-                lighting=False,
-            )
-        W, H = pl.window_size
-        bar = pl.add_scalar_bar(
-            mapper=actor.mapper,
-            title=f"{field} ({unit})",
-            n_labels=5,
-            fmt="%.2e",
-            vertical=True,
-            position_x=(W - BAR + 10) / W,
-            position_y=(PAD + 10) / H,
-            width=(BAR - 30) / W,
-            height=min(0.8, 400 / H),
-            color="black",
-            title_font_size=14,
-            label_font_size=12,
-        )
-        bar.SetVerticalTitleSeparation(6)
+        _draw_field(pl, pv, flow, surface, field, clim, edges, z[0])
     if vectors == "glyphs":
-        points, h = _grid(box, density, pv, flow)
-        if points.n_points:
-            u = np.asarray(points.point_data["velocity"], dtype=float)
-            length = np.linalg.norm(u, axis=1)
-            scale = arrow_scale
-            if scale is None:
-                scale = 0.9 * h / length.max() if length.max() > 0 else 0.0
-            points.point_data["arrow_length"] = length * scale
-            keep = length * scale > 0.05 * h
-            if keep.any():
-                points = points.extract_points(keep, adjacent_cells=False)
-                arrow = pv.Arrow(tip_length=0.35, tip_radius=0.14, shaft_radius=0.04)
-                glyphs = points.glyph(
-                    orient="velocity", scale="arrow_length", factor=1.0, geom=arrow
-                )
-                pl.add_mesh(glyphs.translate((0, 0, z[1])), color=ink, lighting=False)
+        _draw_glyphs(pl, pv, flow, box, density, arrow_scale, ink, z[1])
     elif vectors == "streamlines":
         lines = _streamlines(pv, surface, flow, box, density)
         if lines.n_points:
             pl.add_mesh(lines.translate((0, 0, z[1])), color=ink, line_width=1.2, lighting=False)
     if particles is not None:
-        kind = np.asarray(particles.cell_data["kind"])
-        walls = particles.extract_cells(np.flatnonzero(kind == 2))
-        cores = particles.extract_cells(np.flatnonzero(kind == 1))
-        shadows = particles.extract_cells(np.flatnonzero(kind == 0))
-        if walls.n_cells:
-            pl.add_mesh(walls, color=WALL_FILL, lighting=False)
-        if cores.n_cells:
-            pl.add_mesh(cores.translate((0, 0, z[2])), color=CORE_FILL, lighting=False)
-        if shadows.n_cells:
-            pl.add_mesh(
-                shadows.translate((0, 0, z[3])),
-                style="wireframe",
-                color=SHADOW_EDGE,
-                line_width=1.5,
-                lighting=False,
-            )
-        if cores.n_cells:
-            pl.add_mesh(
-                cores.translate((0, 0, z[4])),
-                style="wireframe",
-                color=CORE_EDGE,
-                line_width=2.5,
-                lighting=False,
-            )
+        _draw_particles(pl, particles, z)
     _mask(pl, pv, box, z[4] * 1.2)
     if title:
         pl.add_text(
             title, position=(PAD, pl.window_size[1] - TITLE + 6), font_size=12, color="black"
+        )
+
+
+def _linear_edges(pv, flow):
+    """The straight edges of the P2 triangles through their corner nodes, as PolyData."""
+    cells = flow.cells_dict[pv.CellType.QUADRATIC_TRIANGLE][:, :3]
+    faces = np.column_stack([np.full(len(cells), 3), cells]).ravel()
+    return pv.PolyData(flow.points, faces=faces)
+
+
+def _draw_mesh(pl, pv, flow, z_edges: float):
+    """The mesh alone: white triangles with blue edges."""
+    linear = _linear_edges(pv, flow)
+    pl.add_mesh(linear, color="white", lighting=False)
+    pl.add_mesh(
+        linear.translate((0, 0, z_edges)),
+        style="wireframe",
+        color=MESH_EDGE,
+        line_width=1,
+        lighting=False,
+    )
+
+
+def _draw_field(pl, pv, flow, surface, field: str, clim, edges: bool, z_edges: float):
+    """The coloured field, the mesh edges over it if asked, and its colour bar."""
+    cmap, unit = FIELDS[field][:2]
+    actor = pl.add_mesh(
+        surface,
+        scalars=field,
+        cmap=cmap,
+        clim=clim,
+        lighting=False,
+        interpolate_before_map=True,
+        show_scalar_bar=False,
+    )
+    if edges:
+        pl.add_mesh(
+            _linear_edges(pv, flow).translate((0, 0, z_edges)),
+            style="wireframe",
+            color="white",
+            opacity=0.35,
+            line_width=1,
+            lighting=False,
+        )
+    W, H = pl.window_size
+    bar = pl.add_scalar_bar(
+        mapper=actor.mapper,
+        title=f"{field} ({unit})",
+        n_labels=5,
+        fmt="%.2e",
+        vertical=True,
+        position_x=(W - BAR + 10) / W,
+        position_y=(PAD + 10) / H,
+        width=(BAR - 30) / W,
+        height=min(0.8, 400 / H),
+        color="black",
+        title_font_size=14,
+        label_font_size=12,
+    )
+    bar.SetVerticalTitleSeparation(6)
+
+
+def _draw_glyphs(pl, pv, flow, box, density: int, arrow_scale, ink, z: float):
+    """Velocity arrows on a regular grid (the shortest, below 5 % of its pitch, left out)."""
+    points, h = _grid(box, density, pv, flow)
+    if not points.n_points:
+        return
+    u = np.asarray(points.point_data["velocity"], dtype=float)
+    length = np.linalg.norm(u, axis=1)
+    scale = arrow_scale
+    if scale is None:
+        scale = 0.9 * h / length.max() if length.max() > 0 else 0.0
+    points.point_data["arrow_length"] = length * scale
+    keep = length * scale > 0.05 * h
+    if keep.any():
+        points = points.extract_points(keep, adjacent_cells=False)
+        arrow = pv.Arrow(tip_length=0.35, tip_radius=0.14, shaft_radius=0.04)
+        glyphs = points.glyph(orient="velocity", scale="arrow_length", factor=1.0, geom=arrow)
+        pl.add_mesh(glyphs.translate((0, 0, z)), color=ink, lighting=False)
+
+
+def _draw_particles(pl, particles, z):
+    """Walls, filled cores, shadow outlines and core outlines, in that order."""
+    kind = np.asarray(particles.cell_data["kind"])
+    walls = particles.extract_cells(np.flatnonzero(kind == 2))
+    cores = particles.extract_cells(np.flatnonzero(kind == 1))
+    shadows = particles.extract_cells(np.flatnonzero(kind == 0))
+    if walls.n_cells:
+        pl.add_mesh(walls, color=WALL_FILL, lighting=False)
+    if cores.n_cells:
+        pl.add_mesh(cores.translate((0, 0, z[2])), color=CORE_FILL, lighting=False)
+    if shadows.n_cells:
+        pl.add_mesh(
+            shadows.translate((0, 0, z[3])),
+            style="wireframe",
+            color=SHADOW_EDGE,
+            line_width=1.5,
+            lighting=False,
+        )
+    if cores.n_cells:
+        pl.add_mesh(
+            cores.translate((0, 0, z[4])),
+            style="wireframe",
+            color=CORE_EDGE,
+            line_width=2.5,
+            lighting=False,
         )
 
 
@@ -188,7 +210,8 @@ def _streamlines(pv, surface, flow, box, density: int):
     if traced.n_points == 0:
         return pv.PolyData()
     # each seed has a forward and a backward piece, both starting at the seed
-    conn, pieces, k = np.asarray(traced.lines), {}, 0
+    conn, k = np.asarray(traced.lines), 0
+    pieces: dict[int, list[np.ndarray]] = {}
     for seed in np.asarray(traced.cell_data["SeedIds"]):
         n = conn[k]
         pieces.setdefault(int(seed), []).append(conn[k + 1 : k + 1 + n])
