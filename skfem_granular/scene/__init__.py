@@ -25,7 +25,7 @@ lists the bundled scenes)::
                 against the left wall behind a gate removed at t = 0
     [contacts]  E, mu, gamma
     [mesh]      kind = "auto" | "graded" | "field" | "uniform" | "group", delta_l, sigma,
-                h, wake
+                h, gap_spacing, wake
     [time]      t_end, dt, dem_dt, adaptive, tol, dt_min
     [effects]   fluid, gravity, convection, contacts, rotation, remeshing
     [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction,
