@@ -221,7 +221,7 @@ def check_settling(args) -> dict:
 
 def check_dkt(args) -> dict:
     """Check 3: drafting, kissing and tumbling times (definitions: docs/sedimentation.md)."""
-    scene, notes = configure(Scene.bundled("dkt_two_disks"), args)
+    scene, notes = configure(Scene.bundled(args.dkt_scene), args)
     if args.dkt_x:  # other abscissae of the two centres (the lateral offset)
         from skfem_granular.dem import Polygon
 
@@ -244,7 +244,8 @@ def check_dkt(args) -> dict:
            "literature": load("sedimentation")["checks"]["drafting_kissing_tumbling"],
            "history": {"t": hist.t.tolist(), "gap": gap.tolist(), "tilt_deg": tilt.tolist(),
                        "y": hist.y.tolist(), "x": hist.x.tolist(), "vx": hist.vx.tolist(),
-                       "vy": hist.vy.tolist()}, "leading_particle": lead}
+                       "vy": hist.vy.tolist(), "omega": hist.omega.tolist()},
+           "leading_particle": lead}
     print("\n| quantity | measured |\n|---|---|")
     for k in ("t_drafting", "t_kiss", "t_min_gap", "t_tilt45", "t_tumble"):
         print(f"| {k} | {m[k]:.4g} s |")
@@ -473,6 +474,8 @@ def main(argv=None):
                     help="terminal: also run the free-settling scenes (long)")
     ap.add_argument("--shape", nargs="+", default=["hexagons", "irregular", "24"],
                     help="repose: grain shapes (hexagons, irregular, or a number of sides)")
+    ap.add_argument("--dkt-scene", default="dkt_two_disks",
+                    help="dkt: the bundled scene (dkt_uhlmann: Uhlmann's set-up)")
     ap.add_argument("--dkt-x", type=float, nargs=2,
                     help="dkt: the abscissae (m) of the lower and the upper disk's centres")
     ap.add_argument("--scenes", nargs="+", default=["settling_rectangle", "settling_hexagon"],

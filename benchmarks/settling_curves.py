@@ -61,8 +61,9 @@ def floor_height(scene_name: str) -> tuple[float, float]:
     return float(V[1].mean()), scene.domain[1] + 2.0 * radius
 
 
-def compare(curve: curves.Curve, result: dict) -> dict:
-    """Every column of ``curve`` against the run in ``result`` (a results file's dict)."""
+def compare(curve: curves.Curve, result: dict, t_max: float | None = None) -> dict:
+    """Every column of ``curve`` against the run in ``result`` (a results file's dict);
+    the non-settling columns over the common interval up to ``t_max`` (default: all)."""
     h = result["history"]
     t = np.asarray(h["t"], dtype=float)
     y0, y_stop = floor_height(result["scene"])
@@ -76,7 +77,8 @@ def compare(curve: curves.Curve, result: dict) -> dict:
                 t, run_column(h, "y"), run_column(h, "vy"), curve, y_stop=y_stop, y0=y0)
             continue
         x_ref, y_ref = curve.series(col)
-        d = curves.l2_difference(t, run_column(h, col), x_ref, y_ref)
+        d = curves.l2_difference(t, run_column(h, col), x_ref, y_ref,
+                                 interval=None if t_max is None else (-np.inf, t_max))
         out["columns"][col] = {"l2": d.l2, "relative": d.relative, "max_abs": d.max_abs,
                                "interval": (d.x0, d.x1)}
         if col == "y":
@@ -89,6 +91,9 @@ def compare(curve: curves.Curve, result: dict) -> dict:
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--results", help="results file to compare (default: by scene)")
+    ap.add_argument("--t-max", type=float, help="compare the curves up to this time (s)")
+    ap.add_argument("--out", default="settling_curves.json",
+                    help="file name in benchmarks/results")
     args = ap.parse_args()
     names = curves.available_curves()
     if not names:
@@ -106,8 +111,8 @@ def main():
             print(f"{name}: setup.scene = {scene!r} has no results file; pass --results")
             continue
         result = json.loads((RESULTS / Path(file).name).read_text())
-        rows.append(compare(c, result))
-    (RESULTS / "settling_curves.json").write_text(json.dumps(rows, indent=1))
+        rows.append(compare(c, result, args.t_max))
+    (RESULTS / args.out).write_text(json.dumps(rows, indent=1))
     print("| curve | column | L2 (rms) | relative | interval (s) | t_down run / ref | "
           "t_floor run / ref |")
     print("|---|---|---|---|---|---|---|")

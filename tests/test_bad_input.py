@@ -360,6 +360,8 @@ LIB = [
     ("timespec-end-before-start", lambda t: TimeSpec(t_end=-1.0), ["time.t_end = -1.0", "> 0"]),
     ("timespec-bool", lambda t: TimeSpec(t_end=True), ["time.t_end = True", "> 0"]),
     ("meshspec-sigma-inf", lambda t: MeshSpec(sigma=np.inf), ["mesh.sigma = inf", "<= 1.6"]),
+    ("meshspec-wake-string", lambda t: MeshSpec(wake="yes"),
+     ["mesh.wake = 'yes'", "true or false"]),
     ("effects-int", lambda t: Effects(gravity=1), ["effects.gravity = 1", "true or false"]),
     ("scene-fluid-string", lambda t: replace(_base(), fluid="water"),
      ["scene.fluid = 'water'", "must be a Fluid or None"]),

@@ -251,3 +251,40 @@ def test_settling_disk_channel_against_the_published_curves():
     out = curves.compare_settling(t, y, vy, k, y_stop=2.5e-3, y0=0.04)
     assert out["t_floor"]["run"] == pytest.approx(0.7533, abs=2e-3)
     assert out["t_floor"]["reference"] == pytest.approx(out["t_floor"]["run"], abs=5e-3)
+
+
+def test_uhlmann_dkt_curves_fit_the_scene_and_the_stored_run():
+    """Uhlmann's (2005) drafting-kissing-tumbling curves start where dkt_uhlmann's disks
+    do, and the stored run (benchmarks/sedimentation.py --check dkt --dkt-scene dkt_uhlmann,
+    sedimentation_dkt_uhlmann.json) follows them up to 0.25 s, before the leading disk
+    reaches the side wall. Measured: relative L2 of the heights 0.79 % / 0.56 %, of the
+    fall velocities 4.3 % / 3.4 % (leading / trailing); kiss (shadows touch) at 0.1730 s,
+    where Uhlmann's leading disk is kicked down (its fall speed half-way up its jump at
+    0.1723 s)."""
+    from pathlib import Path
+
+    from skfem_granular.scene import Scene
+
+    sc = Scene.bundled("dkt_uhlmann")
+    for k, p in enumerate(sc.particles, start=1):
+        x0, y0 = p.polygon.centroid
+        t, y = curves.load_curve(f"uhlmann2005_dkt_y{k}").series(f"y{k}")
+        assert np.interp(0.0, t, y) == pytest.approx(y0, abs=1e-4)       # 0.1 mm reading
+        t, x = curves.load_curve(f"uhlmann2005_dkt_x{k}").series(f"x{k}")
+        assert np.median(x[t < 0.05]) == pytest.approx(x0, abs=1e-4)  # on the centreline
+    root = Path(__file__).resolve().parents[1]
+    run = json.loads((root / "benchmarks/results/sedimentation_dkt_uhlmann.json").read_text())
+    h = run["history"]
+    t = np.asarray(h["t"])
+    bounds = {"y": (0.01, 0.01), "vy": (0.05, 0.05)}   # leading, trailing (relative L2)
+    for col, (b1, b2) in bounds.items():
+        for k, b in ((1, b1), (2, b2)):
+            tr, yr = curves.load_curve(f"uhlmann2005_dkt_{col}{k}").series(f"{col}{k}")
+            run_k = np.asarray(h[col])[:, k - 1]
+            d = curves.l2_difference(t, run_k, tr, yr, interval=(0.0, 0.25))
+            assert d.relative < b, (col, k, d.relative)
+    tr, v = curves.load_curve("uhlmann2005_dkt_vy1").series("vy1")
+    before = -np.interp(0.165, tr, v)
+    peak = -v[(tr > 0.165) & (tr < 0.18)].min()
+    i = np.flatnonzero((tr > 0.165) & (-v > 0.5 * (before + peak)))[0]
+    assert run["measured"]["t_kiss"] == pytest.approx(tr[i], abs=2e-3)

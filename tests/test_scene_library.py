@@ -12,7 +12,7 @@ from skfem_granular.scene import Scene, bundled, bundled_scenes
 
 PAPER = ("collapse", "collapse_group", "single_particle", "single_particle_fine")
 #: issue 14's sedimentation and repose checks
-SEDIMENTATION = ("dkt_two_disks", "migration_off_centre", "repose_hexagons",
+SEDIMENTATION = ("dkt_two_disks", "dkt_uhlmann", "migration_off_centre", "repose_hexagons",
                  "settling_disk_channel", "settling_disk_k3", "settling_disk_k8_tall",
                  "settling_hexagon", "settling_rectangle")
 NAMES = tuple(sorted(PAPER + SEDIMENTATION))

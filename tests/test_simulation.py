@@ -344,7 +344,7 @@ def test_summary_counts_factorisations_by_kind():
     sc = replace(sc, time=replace(sc.time, t_end=2e-4))
     s = Simulation(sc).run(progress=False).summary
     assert (s["factorizations"], s["jacobian_refreshes"]) == (2, 0)
-    assert s["remesh_reasons"] == {"travel": 0, "angle": 0, "area": 0, "ahead": 0}
+    assert s["remesh_reasons"] == {"travel": 0, "angle": 0, "area": 0, "ahead": 0, "wake": 0}
     assert s["mesh"]["kind"] == "graded"
 
 

@@ -8,6 +8,9 @@
 - :mod:`~skfem_granular.coupled.transfer`: how far particles moved since the mesh was
   built, and fields moved onto a new mesh;
 - :mod:`~skfem_granular.coupled.build`: a scene's mesh and coupling;
+- :mod:`~skfem_granular.coupled.wake`: the default graded mesh refined while a particle's
+  Reynolds number says a wake matters; :mod:`~skfem_granular.coupled.flow_size`: element
+  sizes from the flow (an option of the remesh);
 - :mod:`~skfem_granular.coupled.state`: the BDF2 histories and the per-step report;
 - :mod:`~skfem_granular.coupled.stepper`: :class:`CoupledStepper`, which owns the DEM, the
   coupling, the mesh and the remeshing and advances them (``for t, step in stepper.evolve()``).

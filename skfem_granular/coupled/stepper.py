@@ -17,7 +17,9 @@ earlier particle states the BDF2 formulas need (``xi_prev``, ``q_prev``).
 One step (monolithic coupling, the default):
 
 1. remesh first if a particle has moved ``remesh_fraction`` of its outline edge
-   since the mesh was built, transferring ``u_n``, ``u_{n-1}`` and the BDF2
+   since the mesh was built (or, on the default graded mesh, when a particle's Reynolds
+   number first exceeds :data:`~skfem_granular.coupled.wake.WAKE_REYNOLDS`:
+   :mod:`~skfem_granular.coupled.wake`), transferring ``u_n``, ``u_{n-1}`` and the BDF2
    derivatives (:mod:`skfem_granular.coupled.transfer`); a core closer to a wall or
    another core than the mesh follows is remeshed once, then stops the run with the fix
    (:mod:`skfem_granular.coupled.landing`);
@@ -81,6 +83,7 @@ from .landing import landing_check
 from .mesh_motion import MeshMotion
 from .state import CoupledState, StepReport
 from .transfer import lag, transfer_histories
+from .wake import WakeGrading
 
 #: Halvings of a step before the run gives up.
 MAX_RETRIES = 4
@@ -156,11 +159,17 @@ class CoupledStepper:
         self._factor_counts = {"factorizations": 0, "jacobian_refreshes": 0}
         self.remesh_energy_ratios = []
         #: moving mesh: why it was remeshed, ``{reason: count}`` (:func:`~.ale_rules.remesh_reason`)
-        self.remesh_reasons = dict.fromkeys(REMESH_REASONS, 0)
+        #: and ``wake``: the first remesh after :attr:`wake_grading` found a wake
+        self.remesh_reasons = dict.fromkeys((*REMESH_REASONS, "wake"), 0)
         self._landing_remeshed = False  # a gap below LANDING_GAP has been remeshed for
         #: a :class:`~.flow_size.FlowSizing` grades every remesh by the flow too (field
         #: meshes); None (default): by the grains alone
         self.flow_sizing = None
+        #: a :class:`~.wake.WakeGrading` refines every remesh of a default-graded mesh while
+        #: a particle's Reynolds number is above its threshold (``[mesh] wake``, on by
+        #: default for ``graded`` meshes with the default sigma); None: never
+        self.wake_grading = (WakeGrading() if scene.mesh.wake and scene.mesh.sigma is None
+                             and scene.mesh.kind in ("auto", "graded") else None)
         self._set_mesh(mesh, centers, angles)
         self.state = CoupledState(u_n=np.zeros(self.space.nu), p_n=None,
                                   x=np.zeros(self.space.N), F_held=np.zeros((2, dem.n)),
@@ -230,8 +239,12 @@ class CoupledStepper:
 
         dem, sc, s = self.dem, self.scene, self.state
         moved = lag(self.mesh_centers, self.mesh_angles, dem.positions, dem.angles, self.radius)
+        wake = self._wake_options()
         if force:
             pass
+        elif wake.get("sigma") is not None and wake["sigma"] != self.meshed.recipe.options.get(
+                "sigma"):  # a wake starts: its circles now, not at the next remesh
+            self.remesh_reasons["wake"] += 1
         elif self.ale:
             dt_ratio = (None if s.dt_prev is None or s.xi_prev is None
                         else sc.time.dt / s.dt_prev)
@@ -263,7 +276,7 @@ class CoupledStepper:
                 raise ValueError(f"flow_sizing: needs a 'field' mesh ([mesh] kind = "
                                  f"\"field\"), the mesh is {self.meshed.recipe.kind!r}")
             changes["size"] = self.flow_sizing(self.space, s.u_n)
-        new_mesh = meshing.remesh(self.meshed, dem.core_outlines(), **changes)
+        new_mesh = meshing.remesh(self.meshed, dem.core_outlines(), **changes, **wake)
         self.timings["meshing"] += time.perf_counter() - t0
         self._set_mesh(new_mesh)
         t0 = time.perf_counter()
@@ -288,6 +301,17 @@ class CoupledStepper:
             self.remesh_energy_ratios.append(self.fluid_energy() / e_old)
         self.timings["remeshing"] += time.perf_counter() - t0
         self.remeshes += 1
+
+    def _wake_options(self) -> dict:
+        """The builder options :attr:`wake_grading` asks of the next remesh (``{}``: none,
+        for a mesh that is not a remeshable ``graded`` one, with remeshing off, or
+        without the rule)."""
+        recipe = getattr(self.meshed, "recipe", None)
+        if (self.wake_grading is None or recipe is None or recipe.kind != "graded"
+                or not self.scene.effects.remeshing):
+            return {}
+        return self.wake_grading.changes(self.dem.velocities, self.radius,
+                                         self.scene.fluid.kinematic_viscosity)
 
     def _check_landing(self):
         """Stop with one line and the fix when a core is closer to a wall or another core
@@ -570,6 +594,7 @@ class CoupledStepper:
         from here on (bit for bit).
         """
         data = {"state": self.state, "mesh": self.meshed, "mesh_centers": self.mesh_centers,
+                "flow_sizing": self.flow_sizing, "wake_grading": self.wake_grading,
                 "mesh_angles": self.mesh_angles, "coupling_centers": self.coupling.centers.copy(),
                 "counters": {"remeshes": self.remeshes, "retries": self.retries,
                              "rejections": self.rejections, "euler_steps": self.euler_steps,
@@ -602,6 +627,8 @@ class CoupledStepper:
         st = cls(scene, dem, data["mesh"], contacts_active=contacts_active, timings=timings,
                  centers=data["mesh_centers"], angles=data["mesh_angles"], terms=terms)
         st.state = data["state"]
+        st.flow_sizing = data.get("flow_sizing")
+        st.wake_grading = data.get("wake_grading", st.wake_grading)
         if st.ale and data.get("factor_a0") is not None:  # the writer's factorisation
             st.coupling.move(st.reference_space.moved(data["factor_nodes"]),
                              data["factor_centers"], data["factor_w"])
@@ -615,8 +642,8 @@ class CoupledStepper:
         c = data["counters"]
         st.remeshes, st.retries = c["remeshes"], c["retries"]
         st.rejections, st.euler_steps = c["rejections"], c["euler_steps"]
-        st.remesh_reasons = {k.split(".", 1)[1]: v for k, v in c.items()
-                             if k.startswith("remesh_reasons.")}
+        st.remesh_reasons.update({k.split(".", 1)[1]: v for k, v in c.items()
+                                  if k.startswith("remesh_reasons.")})
         # the counts so far, less what the rebuilt coupling has already done
         done = st.factor_counts
         st._factor_counts = {k: c[k] - done[k] + st._factor_counts[k] for k in done}

@@ -24,7 +24,8 @@ lists the bundled scenes)::
     [column]    packing (a .npz file of skfem_granular.packing), core_ratio: a column
                 against the left wall behind a gate removed at t = 0
     [contacts]  E, mu, gamma
-    [mesh]      kind = "graded" | "uniform" | "group", delta_l, sigma, h
+    [mesh]      kind = "auto" | "graded" | "field" | "uniform" | "group", delta_l, sigma,
+                h, gap_spacing, wake
     [time]      t_end, dt, dem_dt, adaptive, tol, dt_min
     [effects]   fluid, gravity, convection, contacts, rotation, remeshing
     [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction,

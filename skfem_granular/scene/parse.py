@@ -223,7 +223,8 @@ def scene_kwargs(data: dict, base=None) -> dict:
     if "contacts" in data or column is not None:
         kw["contact_law"] = _contact_law(data.get("contacts", {}), column)
     if "mesh" in data:
-        check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h", "gap_spacing"})
+        check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h", "gap_spacing",
+                                          "wake"})
         kw["mesh"] = MeshSpec(**data["mesh"])
     if "time" in data:
         check_keys("time", data["time"], {"t_end", "dt", "dem_dt", "adaptive", "tol", "dt_min"})

@@ -62,6 +62,11 @@ class MeshSpec:
     ``gap_spacing`` (``"field"`` meshes only): outline node spacing along narrow gaps
     as a fraction of the gap's width, ``>= 0.1`` (default 1/3; a large value such as
     100 leaves the gaps unlined).
+
+    ``wake`` (default true): a ``"graded"`` mesh with the default ``sigma`` is
+    remeshed with finer circles while a particle's Reynolds number is above 40
+    (:class:`~skfem_granular.coupled.wake.WakeGrading`; quiet flows keep the
+    paper's mesh bit for bit); false keeps the paper's circles at every speed.
     """
 
     kind: str = "auto"
@@ -69,6 +74,7 @@ class MeshSpec:
     sigma: float | None = None
     h: float | None = None
     gap_spacing: float | None = None
+    wake: bool = True
 
     def __post_init__(self):
         if self.kind not in MESH_KINDS:
@@ -86,6 +92,8 @@ class MeshSpec:
             if self.kind not in ("auto", "field"):
                 raise ValueError(f"mesh.gap_spacing: only for kind 'field' (or 'auto' with "
                                  f"several particles), not {self.kind!r}")
+        if not isinstance(self.wake, bool):
+            raise ValueError(f"mesh.wake = {self.wake!r}: must be true or false")
 
 
 @dataclass(frozen=True)

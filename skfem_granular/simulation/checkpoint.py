@@ -39,7 +39,9 @@ import skfem
 
 import meshing
 
+from ..coupled.flow_size import FlowSizing
 from ..coupled.state import CoupledState
+from ..coupled.wake import WakeGrading
 from ..dem import ContactLaw, Polygon, PrescribedMotion
 from ..fluid.properties import Fluid
 from ..io import History, plain
@@ -107,7 +109,7 @@ def _mesh(d):
 #: back with no change here.
 REGISTRY_DATACLASSES = (CoupledState, meshing.BodyFittedMesh, meshing.Recipe, Scene,
                         ParticleSpec, PrescribedMotion, MeshSpec, TimeSpec, Effects, Fluid,
-                        ContactLaw)
+                        ContactLaw, FlowSizing, WakeGrading)
 REGISTRY_CUSTOM = (
     plain.Custom(Polygon, ("vertices",), lambda p: {"vertices": p.vertices}, _polygon,
                  name="skfem_granular.dem.Polygon"),
