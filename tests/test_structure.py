@@ -187,3 +187,16 @@ def test_function_length_counts_code_only(tmp_path):
     p = tmp_path / "probe.py"
     p.write_text(src)
     assert long_functions([p], base=tmp_path) == ["probe.py:1 long: 81 lines"]
+
+
+def test_docs_and_code_speak_of_the_library_not_its_issues():
+    """No issue numbers in page titles, prose, docstrings or benchmark scripts."""
+    import re
+
+    pattern = re.compile(r"\b[Ii]ssue\s+#?\d+|\(issue\b|\b(the|this|that) issue\b", re.I)
+    paths = ([p for pkg in ("skfem_granular", "meshing", "benchmarks") for p in
+              sorted((ROOT / pkg).rglob("*.py"))] + sorted((ROOT / "docs").glob("*.md"))
+             + [ROOT / "README.md"])
+    found = [f"{p.relative_to(ROOT)}:{k + 1}" for p in paths
+             for k, line in enumerate(p.read_text().splitlines()) if pattern.search(line)]
+    assert found == []

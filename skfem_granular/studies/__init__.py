@@ -17,8 +17,8 @@ Two studies:
     analytic Faxen value for the *circle*, so they include the polygonal
     outline's error.
 
-A third, on a moving case, has its own module: :mod:`.settling` (issue 14,
-check 7: the settling disk of check 2, its maximum particle Reynolds number
+A third, on a moving case, has its own module: :mod:`.settling` (the
+sedimentation checks, check 7: the settling disk of check 2, its maximum particle Reynolds number
 and settling time over outline resolution, grading, time step, remesh
 threshold and mesh motion) and :mod:`.settling_plots`; it runs with
 ``python benchmarks/sedimentation.py --check cost [--smoke]``.

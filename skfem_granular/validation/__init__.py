@@ -1,4 +1,4 @@
-"""Validation routes that do not depend on the coupled stepper (issue 14).
+"""Validation routes that do not depend on the coupled stepper.
 
 :mod:`.terminal`: the terminal settling velocity of a disk from steady
 Navier-Stokes solves in the particle's frame

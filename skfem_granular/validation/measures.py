@@ -1,4 +1,4 @@
-"""Quantities the sedimentation benchmarks read off a run (issue 14, checks 2-6).
+"""Quantities the sedimentation benchmarks read off a run (checks 2-6).
 
 Every function takes plain arrays (a run's ``history`` columns, or final
 positions), so that each is tested on synthetic data with a known answer

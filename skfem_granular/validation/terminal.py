@@ -1,6 +1,6 @@
 """Terminal settling velocity of a disk by steady solves in the particle's frame.
 
-The second, independent route of check 1 of issue 14 (the first is the
+The second, independent route of the terminal-velocity check (the first is the
 coupled free-settling run): the velocity ``U`` at which the steady
 Navier-Stokes drag on a *fixed* disk, in a long channel whose walls and far
 field move at ``U`` past it, equals the immersed weight
