@@ -15,6 +15,9 @@ tolerance applies to it).
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TypeVar
+
+import numpy as np
 
 from .errors import ConvergenceError
 from .properties import Fluid
@@ -36,7 +39,12 @@ QUICK = 4
 LARGEST_RATIO = 0.98
 
 
-def viscosity_continuation(solve: Callable, fluid: Fluid) -> tuple[object, list[dict]]:
+# the solution type of a continuation (a Flow)
+_S = TypeVar("_S")
+
+
+def viscosity_continuation(solve: Callable[[Fluid, _S | np.ndarray | None], _S], fluid: Fluid
+                           ) -> tuple[_S, list[dict]]:
     """Reach the steady flow at ``fluid``'s viscosity through larger viscosities.
 
     Parameters
