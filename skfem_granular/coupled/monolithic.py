@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import time
 import weakref
+from typing import TypedDict
 
 import numpy as np
 import scipy.sparse as sp
@@ -63,6 +64,15 @@ from .rigid import RigidParticles
 #: load 9 and 1.14-1.19x on a quieter machine: the saved factorisations cost more in
 #: chord iterations than they save.
 REFRESH_RATE = 0.3
+
+
+class _ChordState(TypedDict):
+    """What the chord iteration of a step carries from one iteration to the next."""
+
+    dn: float | None  # the last correction's size
+    refresh: bool  # factorise the Jacobian before the next correction
+    refreshed: int  # iteration of the last refresh
+    refresh_time: float  # seconds of the refreshes (booked as assembly, factorisation)
 
 
 class MonolithicCoupling(RigidParticles):
@@ -107,7 +117,8 @@ class MonolithicCoupling(RigidParticles):
                  terms=None):
         super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
                          rotation=rotation, imposed=imposed, terms=terms)
-        self._xi_imposed = None  # the imposed particles' rigid velocities of the step
+        # the imposed particles' rigid velocities of the step
+        self._xi_imposed: np.ndarray | None = None
         self.newton_tol = newton_tol
         self.max_iterations = max_iterations
         self._build_prolongation()
@@ -116,10 +127,20 @@ class MonolithicCoupling(RigidParticles):
         # coupling -> cache -> coupling a cycle, and a remeshed-away coupling (its blocks,
         # its factorisation) would stay in memory until Python's cyclic collector ran
         assemble = weakref.WeakMethod(self._coupled_system)
-        self.factors = FactorCache(self.solver, lambda a0: assemble()(a0), self.timings)
+
+        def system(a0: float):
+            method = assemble()
+            assert method is not None  # the cache is the coupling's: it lives while called
+            return method(a0)
+
+        self.factors = FactorCache(self.solver, system, self.timings)
         self.reference_op = self.op  # the operator on the mesh as built (moved ones derive)
-        self.factorized_on = None  # (vertex positions, centres) of the last factorisation
-        self.w_mesh = None  # mesh velocity of a moving mesh (None: fixed mesh)
+        # (vertex positions, centres, fluid state and mesh velocity of a Newton Jacobian) of
+        # the last factorisation
+        self.factorized_on: tuple[np.ndarray, np.ndarray, np.ndarray | None,
+                                  np.ndarray | None] | None = None
+        # mesh velocity of a moving mesh (None: fixed mesh)
+        self.w_mesh: np.ndarray | None = None
 
     # ------------------------------------------------------------------ structure
     @property
@@ -366,7 +387,7 @@ class MonolithicCoupling(RigidParticles):
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
         solve = self.solver.solve_correction if not self.op.linear else self.solver.solve
-        last = {"dn": None, "refresh": False, "refreshed": 0, "refresh_time": 0.0}
+        last: _ChordState = {"dn": None, "refresh": False, "refreshed": 0, "refresh_time": 0.0}
 
         def stop(it, dz, z):
             if self.op.linear and geometry is None:

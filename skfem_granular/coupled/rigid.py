@@ -10,8 +10,10 @@ consistent (reaction) force, read from the momentum residual on those DOFs.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..fluid.boundary import DirichletData
+from ..fluid.factor_cache import FactorCache
 from ..fluid.forces import rigid_lever
 from ..fluid.operator import NavierStokesOperator
 
@@ -43,6 +45,9 @@ class RigidParticles:
         the particles include them.
     """
 
+    #: The factorisations of the step matrices (built by each coupling for its system).
+    factors: FactorCache
+
     def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
                  convection: bool = True, rotation: bool = True, imposed=None,
                  terms=None):
@@ -70,9 +75,10 @@ class RigidParticles:
         self._owner = np.repeat(np.arange(self.K), [d.size for d in self.particle_dofs])
         self._all_comp = space.component[self._all_dofs]
         self.timings = {"assembly": 0.0, "factorization": 0.0, "solve": 0.0, "forces": 0.0}
-        self._last = None  # right-hand side and solution of the last step (for flow())
+        # right-hand side, solution and velocity block of the last step (for flow())
+        self._last: tuple[np.ndarray, np.ndarray, sp.spmatrix | None] | None = None
 
-    def levers(self, k: int):
+    def levers(self, k: int | np.integer):
         """DOFs of particle ``k``, their components and ``e_z x (x - X)`` at them."""
         d = self.particle_dofs[k]
         return d, self.space.component[d], rigid_lever(self.space, d, self.centers[:, k])

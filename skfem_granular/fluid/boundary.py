@@ -137,7 +137,9 @@ class DirichletData:
         self.dofs = np.unique(np.concatenate(dofs)) if dofs else np.zeros(0, dtype=np.int64)
         # boundary facets not covered by Dirichlet data are open (do-nothing)
         self.closed = bool(np.all(np.isin(space.all_boundary_dofs, self.dofs)))
-        self._flux_geometry = None
+        # (first vertex, second vertex, midside node, length-scaled outward normal) of the
+        # boundary facets, built by the first flux()
+        self._flux_geometry: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def moved(self, space) -> DirichletData:
         """The same data on a moved discretisation (``space.moved(p)``): DOFs kept, values

@@ -15,8 +15,12 @@ tolerance applies to it).
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Protocol, TypeVar
+
+import numpy as np
 
 from .errors import ConvergenceError
+from .flow import SolveReport
 from .properties import Fluid
 
 #: Viscosity factors tried first, in order, until a Newton solve from rest converges.
@@ -36,7 +40,18 @@ QUICK = 4
 LARGEST_RATIO = 0.98
 
 
-def viscosity_continuation(solve: Callable, fluid: Fluid) -> tuple[object, list[dict]]:
+class _Solution(Protocol):
+    """What the continuation reads of a solve's result (a :class:`~.flow.Flow`)."""
+
+    x: np.ndarray
+    report: SolveReport
+
+
+_S = TypeVar("_S", bound=_Solution)
+
+
+def viscosity_continuation(solve: Callable[[Fluid, _S | np.ndarray | None], _S], fluid: Fluid
+                           ) -> tuple[_S, list[dict]]:
     """Reach the steady flow at ``fluid``'s viscosity through larger viscosities.
 
     Parameters

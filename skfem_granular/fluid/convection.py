@@ -15,11 +15,37 @@ The results equal the forms
 from __future__ import annotations
 
 import copy
+from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
 
 from .geometry import scatter_pattern
+
+
+class Convection(Protocol):
+    """What the operators use of a convection evaluator: :class:`ConvectionKernel` or
+    :class:`~skfem_granular.fluid.forms_assembly.FormsConvection`."""
+
+    @property
+    def pattern(self) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def apply(self, a: np.ndarray, b: np.ndarray) -> np.ndarray: ...
+
+    def apply_relative(self, u: np.ndarray, w: np.ndarray, convection: bool = True
+                       ) -> np.ndarray: ...
+
+    def residual(self, u: np.ndarray) -> np.ndarray: ...
+
+    def jacobian_action(self, u: np.ndarray, du: np.ndarray) -> np.ndarray: ...
+
+    def relative_jacobian_action(self, u: np.ndarray, w: np.ndarray, du: np.ndarray
+                                 ) -> np.ndarray: ...
+
+    def jacobian(self, u: np.ndarray, newton: bool = True) -> sp.csr_matrix: ...
+
+    def jacobian_data(self, u: np.ndarray, newton: bool = True,
+                      out: np.ndarray | None = None) -> np.ndarray: ...
 
 
 def element_pattern(edofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

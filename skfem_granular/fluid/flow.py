@@ -38,6 +38,19 @@ class SolveReport:
     continuation: list = field(default_factory=list)
 
 
+@dataclass
+class StepInfo:
+    """What one accepted step did."""
+
+    t: float
+    dt: float
+    iterations: int
+    error: float | None
+    rejected: int = 0
+    gmres: bool = False
+    wall_time: dict = field(default_factory=dict)
+
+
 class Flow:
     """Velocity and pressure on a mesh, with forces, point values and output.
 
@@ -54,6 +67,10 @@ class Flow:
         Time of the state (unsteady runs).
     report : SolveReport, optional
     """
+
+    #: What the time step that reached this state did: set on the flows
+    #: :func:`~skfem_granular.fluid.unsteady.evolve` yields (absent otherwise).
+    step: StepInfo
 
     def __init__(self, operator, x: np.ndarray, residual_u, t: float | None = None,
                  report: SolveReport | None = None):

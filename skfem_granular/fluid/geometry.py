@@ -94,8 +94,10 @@ class _Pattern:
     def __init__(self, rows: np.ndarray | None, cols: np.ndarray | None,
                  shape: tuple[int, int], known: tuple | None = None):
         # ``known``: ``(slot, indices, indptr)`` of the same scatter, built elsewhere
-        self.slot, self.indices, self.indptr = (scatter_pattern(rows, cols, shape)
-                                                if known is None else known)
+        if known is None:
+            assert rows is not None and cols is not None  # the scatter, when not known
+            known = scatter_pattern(rows, cols, shape)
+        self.slot, self.indices, self.indptr = known
         self.shape = shape
         self._template = _template(self.indices, self.indptr, shape)
 

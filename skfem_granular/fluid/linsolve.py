@@ -387,4 +387,4 @@ def pardiso_available() -> bool:
     return _PARDISO_AVAILABLE
 
 
-_PARDISO_AVAILABLE = None
+_PARDISO_AVAILABLE: bool | None = None

@@ -21,6 +21,10 @@ from .properties import Fluid
 from .space import TaylorHood
 from .user_terms import UserBlocks, UserTerms
 
+#: indices and indptr of a velocity block, the convection pattern's indices, and the
+#: positions of the block's entries in that pattern (None: not within it)
+_Positions = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
+
 
 class NavierStokesOperator:
     """Residual, Jacobian and reduced systems of the P2/P1 Navier-Stokes equations.
@@ -76,7 +80,8 @@ class NavierStokesOperator:
         self.terms = terms
         #: the time at which the user terms are assembled (the end of a time step)
         self.time = 0.0
-        self._user = None  # (time, velocity, UserBlocks) of the last assembly
+        # (time, velocity, UserBlocks) of the last assembly
+        self._user: tuple[float, np.ndarray, UserBlocks] | None = None
         nu = space.nu
         fixed = dirichlet.dofs
         self.pinned = dirichlet.closed
@@ -88,11 +93,12 @@ class NavierStokesOperator:
         self.free = np.flatnonzero(mask)
         self.nu_free = int(np.count_nonzero(self.free < nu))
         self._zero_p = sp.csr_matrix((space.np_, space.np_))
-        self._velocity_blocks = {}  # c_mass -> c rho M + eta K (the last two kept)
+        # c_mass -> c rho M + eta K (the last two kept)
+        self._velocity_blocks: dict[float, sp.csr_matrix] = {}
         # [(indices, indptr of A_uu, the convection pattern's indices, positions of A_uu's
         # entries in that pattern)]: one list shared by the operator and its moved copies,
         # whose blocks and kernels keep the reference patterns
-        self._conv_positions = [None]
+        self._conv_positions: list[_Positions | None] = [None]
 
     def moved(self, space) -> NavierStokesOperator:
         """The same operator on a moved discretisation (``space = self.space.moved(p)``).
@@ -394,14 +400,14 @@ class NavierStokesOperator:
         u = x[: sp_.nu]
         du, dp = sp_.split(dx)
         ru = A_uu @ du + self._Bt @ dp
-        kern = sp_.convection if (self.convection or w_mesh is not None) else None
         rho = self.fluid.density
-        if self.convection and w_mesh is None:
-            ru += rho * kern.jacobian_action(u, du)
+        if w_mesh is None:
+            if self.convection:
+                ru += rho * sp_.convection.jacobian_action(u, du)
         elif self.convection:
-            ru += rho * kern.relative_jacobian_action(u, w_mesh, du)
-        elif kern is not None:
-            ru += rho * kern.apply(-w_mesh, du)
+            ru += rho * sp_.convection.relative_jacobian_action(u, w_mesh, du)
+        else:
+            ru += rho * sp_.convection.apply(-w_mesh, du)
         rp = sp_.B @ du
         ub = self.user_blocks(x)
         if ub is not None:

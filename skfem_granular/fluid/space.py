@@ -19,7 +19,7 @@ from skfem.mapping import MappingAffine
 from skfem.quadrature import get_quadrature
 
 from . import forms
-from .convection import ConvectionKernel, element_pattern
+from .convection import Convection, ConvectionKernel, element_pattern
 from .ordering import element_incidence, fill_reducing_ordering
 
 #: How the built-in blocks can be assembled (:class:`TaylorHood`'s ``assembly``).
@@ -74,7 +74,7 @@ class TaylorHood:
         self.nu = self.velocity_dofs.N
         self.np_ = self.pressure_dofs.N
         self.N = self.nu + self.np_
-        self._viscous_forms = set()  # the viscous forms asked for (see K)
+        self._viscous_forms: set[str] = set()  # the viscous forms asked for (see K)
 
     def __repr__(self) -> str:
         return (f"TaylorHood(P2/P1 on {self.mesh.p.shape[1]} vertices, {self.mesh.t.shape[1]} "
@@ -229,7 +229,7 @@ class TaylorHood:
         return asm(forms.pressure_laplace, self.pb).tocsr()
 
     @cached_property
-    def convection(self) -> ConvectionKernel:
+    def convection(self) -> Convection:
         """Fast convection evaluation on this mesh (``asm`` of the forms with
         ``assembly="scikit-fem"``: :class:`~.forms_assembly.FormsConvection`)."""
         if self.assembly == "scikit-fem":
@@ -237,7 +237,10 @@ class TaylorHood:
 
             return FormsConvection(self)
         if self.reference is not self:
-            return self.reference.convection.with_maps(self._moved_geometry["maps"])
+            kernel = self.reference.convection
+            # a moved space has its reference's assembly: "compiled", so a kernel
+            assert isinstance(kernel, ConvectionKernel)
+            return kernel.with_maps(self._moved_geometry["maps"])
         rb = self.reference_blocks
         maps = rb.moved(self.mesh.p, check=False, parts=("convection",))["maps"]
         return ConvectionKernel(self.scalar_dofs.element_dofs, maps,

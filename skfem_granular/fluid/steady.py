@@ -137,7 +137,7 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
     report = SolveReport()
     # reference size: the residual of the zero-interior state with boundary data
     r = op.residual(x)
-    ref = max(np.linalg.norm(r[free]), 1e-300)
+    ref = max(float(np.linalg.norm(r[free])), 1e-300)
     if op.linear:
         t0 = time.perf_counter()
         J = op.reduced_jacobian(x)

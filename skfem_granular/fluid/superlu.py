@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -10,6 +11,12 @@ import scipy.sparse.linalg as spla
 
 from .factor_plan import plan_for
 from .solver_base import SaddlePointSolver
+
+
+class _Factors(Protocol):
+    """What a solve needs of the factors: scipy's ``SuperLU`` or :class:`_PermutedLU`."""
+
+    def solve(self, b: np.ndarray) -> np.ndarray: ...
 
 
 class SuperLUSolver(SaddlePointSolver):
@@ -50,7 +57,9 @@ class SuperLUSolver(SaddlePointSolver):
         self.delta = delta
         self.refine_rtol = refine_rtol
         self.max_refine = max_refine
-        self._lu = self._A = None  # the factors and the matrix they refine against
+        # the factors and the matrix they refine against
+        self._lu: _Factors | None = None
+        self._A: sp.csr_matrix | None = None
         self._static = False
 
     def factorize(self, A: sp.spmatrix, nu: int, **blocks) -> SuperLUSolver:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -33,24 +33,11 @@ from .._validate import positive
 from .boundary import DirichletData
 from .errors import ConvergenceError
 from .factor_cache import FactorCache
-from .flow import Flow, SolveReport
+from .flow import Flow, SolveReport, StepInfo
 from .linsolve import make_solver
 from .newton import chord_stalled, newton_iterate
 from .operator import NavierStokesOperator
 from .steady import as_space
-
-
-@dataclass
-class StepInfo:
-    """What one accepted step did."""
-
-    t: float
-    dt: float
-    iterations: int
-    error: float | None
-    rejected: int = 0
-    gmres: bool = False
-    wall_time: dict = field(default_factory=dict)
 
 
 class BDF2Integrator:
@@ -125,10 +112,10 @@ class BDF2Integrator:
         if u0 is not None:
             self.x[:nu] = self._initial_velocity(u0)
         self.op.apply_dirichlet(self.x, self.t)
-        self.u_prev = None        # u_{n-1}
-        self.du = np.zeros(nu)    # u'_n
-        self.du_prev = None       # u'_{n-1}
-        self.dt_prev = None
+        self.u_prev: np.ndarray | None = None   # u_{n-1}
+        self.du = np.zeros(nu)                  # u'_n
+        self.du_prev: np.ndarray | None = None  # u'_{n-1}
+        self.dt_prev: float | None = None
         if velocity_scale is None:
             vals = self.op.dirichlet.values(self.t)
             velocity_scale = float(np.abs(vals).max()) if vals.size else 0.0
@@ -141,7 +128,9 @@ class BDF2Integrator:
             raise ValueError("mesh_motion: must be a callable t -> vertex positions (2, nv)")
         self.mesh_motion = mesh_motion
         self.refactor_iterations = int(refactor_iterations)
-        self.p_n = self.p_prev = None  # vertex positions at t_n, t_{n-1} (moving meshes)
+        # vertex positions at t_n, t_{n-1} (moving meshes)
+        self.p_n: np.ndarray | None = None
+        self.p_prev: np.ndarray | None = None
         if mesh_motion is not None:
             self.p_n = self._positions(self.t)
             if not np.array_equal(self.p_n, self.space.mesh.p):
@@ -182,8 +171,10 @@ class BDF2Integrator:
             return self.op, None
         p_new = self._positions(self.t + dt)
         op = self.op.moved(self.space.reference.moved(p_new))
+        assert self.p_n is not None  # set from the start on a moving mesh
         wv = a0 * p_new + a1 * self.p_n
-        if a2 != 0.0:
+        if a2 != 0.0:  # a second step on: t_{n-1} was committed
+            assert self.p_prev is not None
             wv = wv + a2 * self.p_prev
         return op, op.space.vertex_field(wv)
 
@@ -369,7 +360,7 @@ def evolve(mesh, fluid, velocity: dict, *, dt: float, t_end: float, adaptive: bo
     ------
     t : float
     flow : Flow
-        ``flow.report`` carries the step's :class:`StepInfo` as ``flow.step``.
+        ``flow.report`` carries the step's :class:`~.flow.StepInfo` as ``flow.step``.
     """
     dt = positive("dt", dt)
     integ = BDF2Integrator(mesh, fluid, velocity, **options)
@@ -393,13 +384,16 @@ def evolve(mesh, fluid, velocity: dict, *, dt: float, t_end: float, adaptive: bo
                                  max_rejections=max_rejections)
         except ts.StepFailedError as exc:
             if exc.reason == "halvings":
+                assert exc.__cause__ is not None  # accept_step raises it from the failure
                 raise exc.__cause__ from None
             raise ConvergenceError(
                 f"evolve: {exc.rejections} rejected steps in a row at t={integ.t:.6g} "
                 f"(dt={exc.step:.3e}, error {exc.error:.2e} > tol {tol:.0e})") from None
-        x, its, err, gm = acc.result
+        # what try_step returns (AcceptedStep.result is typed object)
+        x, its, err, gm = cast("tuple[np.ndarray, int, float | None, bool]", acc.result)
         step, rejected = acc.step, acc.halvings + acc.rejections
         if adaptive and err is not None:
+            assert acc.proposal is not None  # the controller proposes with every estimate
             dt = acc.proposal
         elif acc.halvings:
             dt = step  # a halved step stays halved
