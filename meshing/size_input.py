@@ -89,8 +89,8 @@ def as_size(size: object, slope: float | None = None) -> Callable | None:
         return _checked(size)
     try:
         points, values = size  # type: ignore[misc]
-        P = np.array(points, dtype=float)
-        v = np.array(values, dtype=float)
+        P = np.array(points, dtype=np.float64)
+        v = np.array(values, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError("size: expected a callable size(x) -> (M,) or (points (2, N), "
                          "values (N,))") from None

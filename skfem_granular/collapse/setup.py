@@ -10,6 +10,7 @@ the grains' cores and graded towards the remote walls (docs/meshing.md).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from ..packing import Packing
 from ..scene import Scene
@@ -64,7 +65,7 @@ def column_scene(packing: Packing, *, fluid: bool = True, core_ratio: float = 0.
     L, H = tank_size(packing) if tank is None else tank
     t_end = 8.0 * time_scale(packing) if t_end is None else t_end
     dt = (1e-3 if not fluid else 2e-4) if dt is None else dt
-    data = {
+    data: dict[str, Any] = {
         "domain": {"box": [0.0, 0.0, L, H], "wall_thickness": packing.d_max},
         "column": {"packing": packing, "core_ratio": core_ratio},
         "contacts": {"E": packing.E, "mu": mu, "gamma": gamma},

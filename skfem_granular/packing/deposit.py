@@ -96,6 +96,8 @@ def deposition(dem: DEMSystem, *, t_max: float, rest_speed: float, chunk: float 
 def _max_overlap(dem: DEMSystem) -> float:
     """Largest overlap area between two grains of the last step over the smaller's area."""
     cf = dem.contacts
+    if cf is None:  # no step taken yet
+        return 0.0
     grains = cf.j < dem.n
     if not grains.any():
         return 0.0
@@ -113,7 +115,7 @@ def surface_height(outlines, width: float, strip: float) -> float:
     return float(top[np.isfinite(top)].mean())
 
 
-def prepare_column(n: int, aspect: float, state: str = "dense", *, shape: str = "ngon",
+def prepare_column(n: int, aspect: float, state: str | Protocol = "dense", *, shape: str = "ngon",
                    d_mean: float = 1e-3, size_ratio: float = 1.8, sides: int = 12,
                    density: float = 2650.0, E: float = 1e6, seed: int = 0,
                    margin: float = 2.0, t_max: float = 3.0, gravity: float = 9.81,

@@ -146,7 +146,8 @@ def _check_count(parts: list, grid) -> None:
     n = len(parts)
     if isinstance(grid, dict):
         nx, ny = grid.get("nx"), grid.get("ny")
-        if all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (nx, ny)):
+        if (isinstance(nx, int) and isinstance(ny, int) and not isinstance(nx, bool)
+                and not isinstance(ny, bool) and nx > 0 and ny > 0):
             n += nx * ny
     if n > MAX_PARTICLES:
         raise ValueError(f"particles: {n} in the scene ([[particles]] and [grid]); at most "

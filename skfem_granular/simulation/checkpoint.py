@@ -157,7 +157,7 @@ def _history_rows(d, where: str, n_particles: int) -> list:
             extra = sorted(set(got) - set(cols)) if isinstance(got, dict) else []
             what = f"unknown column {extra[0]!r}" if extra else "columns missing"
             fail(f"history.{name}", f"{what} (columns: {', '.join(cols)})")
-    T = None
+    T: int | None = None
     for c in History.STEP_COLUMNS:
         a = d["step"][c]
         if not (isinstance(a, np.ndarray) and a.ndim == 1):
@@ -165,6 +165,7 @@ def _history_rows(d, where: str, n_particles: int) -> list:
         T = a.shape[0] if T is None else T
         if a.shape != (T,):
             fail(f"history.step.{c}", f"shape {a.shape}: must be ({T},) like history.step.t")
+    assert T is not None  # History has step columns
     for c in History.PARTICLE_COLUMNS:
         a = d["particle"][c]
         if not (isinstance(a, np.ndarray) and a.shape == (T, n_particles)

@@ -47,7 +47,7 @@ CONTACT_STEP_FACTOR = 1.25
 
 def scene_warnings(scene, dem, contacts_active: bool) -> list[str]:
     """Contradictions in a scene worth telling the user about."""
-    out = []
+    out: list[str] = []
     if scene.dry:
         return out
     fl = scene.fluid
