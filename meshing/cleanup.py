@@ -3,7 +3,7 @@ wall nodes, and merging of degenerate triangles."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -23,6 +23,11 @@ SHORT_FRACTION = 0.6
 
 WALL_MERGE_FRACTION = 0.5
 """Wall nodes closer than this times the local size are merged."""
+
+
+#: What the cleanup, relaxation and repair read of a mesh's size rule: the target edge
+#: length ``(M,)`` at points ``(2, M)`` (:class:`Sizing`, a field mesh's SizeField).
+SizeRule = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
 
 class Sizing:
@@ -100,7 +105,7 @@ def near_particles(particles: Sequence[NDArray[np.float64]], x: NDArray[np.float
 
 
 def truncate(D: NDArray[np.float64], particles: Sequence[NDArray[np.float64]],
-             x: NDArray[np.float64], sizing: Sizing,
+             x: NDArray[np.float64], sizing: SizeRule,
              fraction: float = PROJECT_FRACTION) -> tuple[NDArray, NDArray, NDArray]:
     """Drop candidate nodes outside the domain, project near-wall ones onto it.
 
@@ -123,7 +128,7 @@ def truncate(D: NDArray[np.float64], particles: Sequence[NDArray[np.float64]],
 
 
 def wall_nodes(D: NDArray[np.float64], proj: NDArray[np.float64], proj_edge: NDArray,
-               sizing: Sizing, fixed: NDArray[np.float64] | None = None,
+               sizing: SizeRule, fixed: NDArray[np.float64] | None = None,
                fixed_edge: NDArray | None = None,
                fraction: float = WALL_MERGE_FRACTION) -> tuple[NDArray, NDArray]:
     """Nodes along the domain outline: corners, fixed nodes, projected nodes, gap fillers.
@@ -183,7 +188,7 @@ def remove_nodes(layout: Layout, drop: NDArray[np.int64]) -> Layout:
                    wall_edge=layout.wall_edge[keep_wall], free=layout.free[:, keep_free])
 
 
-def degenerate_nodes(tri: Triangulation, can_go: NDArray[np.bool_], sizing: Sizing,
+def degenerate_nodes(tri: Triangulation, can_go: NDArray[np.bool_], sizing: SizeRule,
                      max_aspect: float = MERGE_ASPECT,
                      short: float = SHORT_FRACTION) -> NDArray[np.int64]:
     """Nodes whose removal merges each degenerate triangle with its neighbours.
@@ -224,7 +229,7 @@ def degenerate_nodes(tri: Triangulation, can_go: NDArray[np.bool_], sizing: Sizi
     return np.array(sorted(out), dtype=np.int64)
 
 
-def merge_degenerate(layout: Layout, sizing: Sizing, max_aspect: float = MERGE_ASPECT,
+def merge_degenerate(layout: Layout, sizing: SizeRule, max_aspect: float = MERGE_ASPECT,
                      rounds: int = 4, tri: Triangulation | None = None
                      ) -> tuple[Layout, Triangulation]:
     """Remove nodes of degenerate triangles and re-triangulate until none is left

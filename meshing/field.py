@@ -223,9 +223,9 @@ def smooth_bad(tri, first_movable: int, rounds: int = 6) -> bool:
             for y in targets:
                 for w in (1.0, 0.6, 0.3):
                     p[:, v] = x0 + w * (y - x0)
-                    q = _star_quality(p, star)
-                    if q > q_best + 1e-9:
-                        best, q_best = p[:, v].copy(), q
+                    quality = _star_quality(p, star)
+                    if quality > q_best + 1e-9:
+                        best, q_best = p[:, v].copy(), quality
             p[:, v] = best
             moved |= bool(np.any(best != x0))
         if not moved:

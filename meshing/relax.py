@@ -18,7 +18,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from .cleanup import Sizing, near_particles
+from .cleanup import SizeRule, near_particles
 from .pslg import Layout, triangulate
 
 KEEP_OUT = 0.3
@@ -34,7 +34,7 @@ def unique_edges(t: NDArray[np.int64]) -> NDArray[np.int64]:
 
 
 def spring_forces(x: NDArray[np.float64], e: NDArray[np.int64],
-                  sizing: Sizing) -> NDArray[np.float64]:
+                  sizing: SizeRule) -> NDArray[np.float64]:
     """Net spring force per node ``(2, n)`` (in units of length)."""
     d = x[:, e[1]] - x[:, e[0]]
     L = np.hypot(*d)
@@ -48,7 +48,7 @@ def spring_forces(x: NDArray[np.float64], e: NDArray[np.int64],
     return F
 
 
-def relax(layout: Layout, sizing: Sizing, keep_out: Sequence[NDArray[np.float64]] = (),
+def relax(layout: Layout, sizing: SizeRule, keep_out: Sequence[NDArray[np.float64]] = (),
           rounds: int = 4, steps: int = 8, dt: float = 0.15) -> Layout:
     """Relax a layout's free and wall nodes (see module docstring).
 

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from .cleanup import Sizing, merge_degenerate, near_particles
+from .cleanup import SizeRule, merge_degenerate, near_particles
 from .geometry import inside
 from .pslg import Layout, Triangulation, wall_segments
 from .quality import angles_and_aspect, edge_lengths
@@ -26,7 +26,7 @@ REPAIR_ROUNDS = 3
 """Rounds of node insertion for triangles outside the guaranteed bounds."""
 
 
-def build(layout: Layout, sizing: Sizing, keep_out: Sequence[NDArray[np.float64]],
+def build(layout: Layout, sizing: SizeRule, keep_out: Sequence[NDArray[np.float64]],
           relax_rounds: int) -> tuple[Layout, Triangulation]:
     """Merge degenerate triangles, relax, merge again, repair.
 

@@ -12,6 +12,7 @@ here knows where the values come from.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -88,7 +89,7 @@ def as_size(size: object, slope: float | None = None) -> Callable | None:
     if callable(size):
         return _checked(size)
     try:
-        points, values = size  # type: ignore[misc]
+        points, values = cast(tuple, size)
         P = np.array(points, dtype=np.float64)
         v = np.array(values, dtype=np.float64)
     except (TypeError, ValueError):

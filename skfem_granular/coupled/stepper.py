@@ -71,6 +71,7 @@ a grain resting on the floor rattled at 8e-5 m/s. Backward Euler is monotone:
 from __future__ import annotations
 
 import time
+from typing import Any, cast
 
 import numpy as np
 
@@ -157,7 +158,7 @@ class CoupledStepper:
             [np.linalg.norm(c - c.mean(axis=1, keepdims=True), axis=0).max() for c in cores])
         self.remeshes = self.retries = self.rejections = self.euler_steps = 0
         self._factor_counts = {"factorizations": 0, "jacobian_refreshes": 0}
-        self.remesh_energy_ratios = []
+        self.remesh_energy_ratios: list[float] = []
         #: moving mesh: why it was remeshed, ``{reason: count}`` (:func:`~.ale_rules.remesh_reason`)
         #: and ``wake``: the first remesh after :attr:`wake_grading` found a wake
         self.remesh_reasons = dict.fromkeys((*REMESH_REASONS, "wake"), 0)
@@ -270,7 +271,7 @@ class CoupledStepper:
         old_prev = (self.reference_space.moved(s.nodes_prev)
                     if self.ale and s.nodes_prev is not None and s.q_prev is not None
                     else None)
-        changes = {}
+        changes: dict[str, Any] = {}
         if self.flow_sizing is not None:
             if self.meshed.recipe.kind != "field":
                 raise ValueError(f"flow_sizing: needs a 'field' mesh ([mesh] kind = "
@@ -390,8 +391,9 @@ class CoupledStepper:
             return True
         eps = 1e3 * np.finfo(float).eps
         v = np.abs(np.concatenate([xi_n[:2], dem.velocities], axis=1)).max()
-        noise = eps * (dem.mass.max() * v / step + np.abs(F_ext).max()
-                       + np.abs(self.state.F_held).max())
+        F_held = self.state.F_held
+        assert F_held is not None  # a stepper's state always holds the last fluid force
+        noise = eps * (dem.mass.max() * v / step + np.abs(F_ext).max() + np.abs(F_held).max())
         return bool(np.abs(F_c).max() > noise or np.abs(T_c / self.radius).max() > noise)
 
     def _attempt(self, step: float):
@@ -432,7 +434,7 @@ class CoupledStepper:
                                      (a0, a1, a2), q_n,
                                      s.q_prev if dt_prev is not None else None, q_dem,
                                      self.radius, self.edge, s.t)
-        moving = {} if geometry is None else {"geometry": geometry}
+        moving: dict[str, Any] = {} if geometry is None else {"geometry": geometry}
         imposed = dem.imposed if dem.imposed.any() else None
         if imposed is not None:
             # prescribed motions: the poses at t_{n+1} are the motions'; the velocities their
@@ -446,7 +448,8 @@ class CoupledStepper:
         if q_dem is not None:
             q_new = q_dem
         else:
-            q_new = (xi_new - a1 * q_n - (a2 * s.q_prev if dt_prev is not None else 0.0)) / a0
+            q_prev = cast(np.ndarray, s.q_prev)  # held whenever dt_prev is
+            q_new = (xi_new - a1 * q_n - (a2 * q_prev if dt_prev is not None else 0.0)) / a0
         if imposed is not None:  # exactly on the trajectory
             q_new = q_new.copy()
             q_new[:, imposed] = q_imp[:, imposed]
@@ -553,7 +556,7 @@ class CoupledStepper:
                 f"(time.dt_min = {ctrl.dt_min:g})") from None
         self.retries += out.halvings
         self.rejections += out.rejections
-        new, res, acc, q_new, xi_new = out.result
+        new, res, acc, q_new, xi_new = cast(tuple, out.result)
         if ctrl is not None:
             new.error = float("nan") if out.error is None else out.error
             new.dt_next = out.proposal
@@ -609,10 +612,10 @@ class CoupledStepper:
             # with the mesh velocity factor_w)
             on = getattr(self.coupling, "factorized_on", None)
             a0 = self.coupling.factors.a0
-            held = a0 is not None and on is not None
-            data.update(factor_a0=a0 if held else None, factor_nodes=on[0] if held else None,
-                        factor_centers=on[1] if held else None,
-                        factor_x=on[2] if held else None, factor_w=on[3] if held else None)
+            if a0 is None or on is None:
+                a0, on = None, (None, None, None, None)
+            data.update(factor_a0=a0, factor_nodes=on[0], factor_centers=on[1],
+                        factor_x=on[2], factor_w=on[3])
         else:
             data.update(factor_a0=None, factor_nodes=None, factor_centers=None,
                         factor_x=None, factor_w=None)

@@ -123,7 +123,7 @@ class Simulation:
         self.scene = scene
         budget = Budget() if budget is None else budget
         budget.check_steps(scene)
-        self.timings = defaultdict(float)
+        self.timings: defaultdict[str, float] = defaultdict(float)
         out = output_dir if output_dir is not None else scene.output_dir
         self.output_dir = None if out is None else Path(out)
         self.folder = None
@@ -146,14 +146,15 @@ class Simulation:
             contacts_needed(scene, self.dem) if eff.contacts == "auto" else bool(eff.contacts)
         )
         self.warnings = scene_warnings(scene, self.dem, self.contacts_active)
-        self.failure = None
+        self.failure: str | None = None
         self.status = "not started"
-        self.stopped_by = None
+        self.stopped_by: str | None = None
         self.stopped_at_once = False
         self.history = History(self.dem.n)
         self.steps_done = 0
         self.result: SimulationResult | None = None
-        self._resumed_frames = {}
+        self._resumed_frames: dict = {}
+        self.stepper: DryStepper | CoupledStepper
         if scene.dry:
             self.stepper = DryStepper(scene, self.dem, self.timings)
         else:
@@ -221,7 +222,7 @@ class Simulation:
         checkpoint.check_entries(data["dem"], sim.dem.save_state(), "dem", where)
         checkpoint.check_entries(saved, sim.stepper.checkpoint_state(), "stepper", where)
         sim.dem.restore_state(data["dem"])
-        if scene.dry:
+        if isinstance(sim.stepper, DryStepper):
             sim.stepper.steps_taken = saved["steps_taken"]
         else:
             sim.stepper = CoupledStepper.from_checkpoint_state(
@@ -239,8 +240,8 @@ class Simulation:
         return (f"Simulation({self.scene.name!r}, t_end={self.scene.time.t_end:g} s: {kind}; "
                 f"{out})")
 
-    def _coupled(self, name):
-        if self.scene.dry:
+    def _coupled(self, name) -> CoupledStepper:
+        if not isinstance(self.stepper, CoupledStepper):  # a dry scene's
             raise AttributeError(f"a dry scene has no {name}")
         return self.stepper
 
@@ -261,27 +262,27 @@ class Simulation:
 
     @property
     def remeshes(self) -> int:
-        return 0 if self.scene.dry else self.stepper.remeshes
+        return 0 if self.scene.dry else self._coupled("remeshes").remeshes
 
     @property
     def retries(self) -> int:
         """Step halvings after corrector failures."""
-        return 0 if self.scene.dry else self.stepper.retries
+        return 0 if self.scene.dry else self._coupled("retries").retries
 
     @property
     def rejections(self) -> int:
         """Steps rejected by the error control (adaptive runs)."""
-        return 0 if self.scene.dry else self.stepper.rejections
+        return 0 if self.scene.dry else self._coupled("rejections").rejections
 
     @property
     def euler_steps(self) -> int:
         """Backward-Euler steps taken because of contacts."""
-        return 0 if self.scene.dry else self.stepper.euler_steps
+        return 0 if self.scene.dry else self._coupled("euler_steps").euler_steps
 
     @property
     def remesh_energy_ratios(self) -> list:
         """Fluid kinetic energy after / before each transfer onto a new mesh."""
-        return [] if self.scene.dry else self.stepper.remesh_energy_ratios
+        return [] if self.scene.dry else self._coupled("remesh_energy_ratios").remesh_energy_ratios
 
     @property
     def last_good(self):
@@ -404,7 +405,7 @@ class Simulation:
             raise SimulationError(f"{self.failure}; the files written before are intact"
                                   ) from exc
         self.failure = str(exc)
-        if not self.scene.dry:
+        if isinstance(self.stepper, CoupledStepper):
             try:
                 out.frame(self.stepper.state.t)
             except OSError:
@@ -444,6 +445,7 @@ class Simulation:
                 pass
         except StopNow:  # a second signal between two steps: the generator writes, then ends
             steps.close()
+        assert self.result is not None  # the generator writes it however it ends
         return self.result
 
     def fluid_energy(self) -> float:
