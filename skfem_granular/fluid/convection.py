@@ -91,7 +91,40 @@ def element_pattern(edofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return slot.ravel().astype(np.int32), indices.astype(np.int32), indptr.astype(np.int32)
 
 
-class ConvectionKernel:
+class ConvectionActions:
+    """What a convection derives from its two primitives: :meth:`apply` ``((a . grad) b,
+    v_i)`` and ``_vector(a, ca, w, cw, b)`` ``(((ca a - cw w) . grad) b, v_i)``: the ALE
+    convection, the residual and the Newton actions (shared by the compiled kernel and
+    the scikit-fem path, :class:`~.forms_assembly.FormsConvection`)."""
+
+    def apply(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _vector(self, a, ca, w, cw, b) -> np.ndarray:
+        raise NotImplementedError
+
+    def apply_relative(self, u: np.ndarray, w: np.ndarray, convection: bool = True
+                       ) -> np.ndarray:
+        """``(((u - w) . grad) u, v_i)`` (``convection``) or ``((-w . grad) u, v_i)``: the ALE
+        convection of ``u`` on a mesh moving with velocity ``w``."""
+        return self._vector(u, 1.0 if convection else 0.0, w, 1.0, u)
+
+    def residual(self, u: np.ndarray) -> np.ndarray:
+        """``N(u) u``."""
+        return self.apply(u, u)
+
+    def jacobian_action(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
+        """Newton linearisation at ``u`` applied to ``du``: ``N(u) du + N(du) u``."""
+        return self.apply(u, du) + self.apply(du, u)
+
+    def relative_jacobian_action(self, u: np.ndarray, w: np.ndarray, du: np.ndarray
+                                 ) -> np.ndarray:
+        """Linearisation of the ALE convection ``((u - w) . grad) u`` (:meth:`apply_relative`)
+        at ``u`` applied to ``du``: ``((u - w) . grad) du + (du . grad) u``."""
+        return self._vector(u, 1.0, w, 1.0, du) + self.apply(du, u)
+
+
+class ConvectionKernel(ConvectionActions):
     """Convection ``((a . grad) b, v)`` on a P2 vector space.
 
     Parameters
@@ -166,26 +199,6 @@ class ConvectionKernel:
             raise ValueError(f"{name}: shape {v.shape}, expected ({self.nu},): the velocity "
                              "DOFs of this kernel's mesh")
         return v
-
-    def apply_relative(self, u: np.ndarray, w: np.ndarray, convection: bool = True
-                       ) -> np.ndarray:
-        """``(((u - w) . grad) u, v_i)`` (``convection``) or ``((-w . grad) u, v_i)``: the ALE
-        convection of ``u`` on a mesh moving with velocity ``w``."""
-        return self._vector(u, 1.0 if convection else 0.0, w, 1.0, u)
-
-    def residual(self, u: np.ndarray) -> np.ndarray:
-        """``N(u) u``."""
-        return self.apply(u, u)
-
-    def jacobian_action(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
-        """Newton linearisation at ``u`` applied to ``du``: ``N(u) du + N(du) u``."""
-        return self.apply(u, du) + self.apply(du, u)
-
-    def relative_jacobian_action(self, u: np.ndarray, w: np.ndarray, du: np.ndarray
-                                 ) -> np.ndarray:
-        """Linearisation of the ALE convection ``((u - w) . grad) u`` (:meth:`apply_relative`)
-        at ``u`` applied to ``du``: ``((u - w) . grad) du + (du . grad) u``."""
-        return self._vector(u, 1.0, w, 1.0, du) + self.apply(du, u)
 
     def jacobian(self, u: np.ndarray, newton: bool = True) -> sp.csr_matrix:
         """Matrix of the convection term linearised at ``u`` (see :meth:`jacobian_data`)."""

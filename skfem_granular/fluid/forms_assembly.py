@@ -18,6 +18,7 @@ import scipy.sparse as sp
 from skfem import asm
 
 from . import forms
+from .convection import ConvectionActions
 
 #: The forms of the geometric blocks, and the basis pair each is assembled on.
 BLOCK_FORMS = {"M": (forms.vector_mass, "uu"), "K_symmetric": (forms.viscous_symmetric, "uu"),
@@ -56,7 +57,7 @@ def block(space, name: str) -> sp.csr_matrix:
     return pattern.csr(on_pattern(A, pattern.indices, pattern.indptr))
 
 
-class FormsConvection:
+class FormsConvection(ConvectionActions):
     """The convection ``((a . grad) b, v)`` by ``asm`` of :data:`~.forms.convection` and
     :data:`~.forms.convection_newton`, with the interface of
     :class:`~skfem_granular.fluid.convection.ConvectionKernel`.
@@ -89,24 +90,6 @@ class FormsConvection:
     def apply(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Vector of ``((a . grad) b, v_i)`` for all test functions ``v_i``."""
         return self._matrix(a, False) @ b
-
-    def apply_relative(self, u: np.ndarray, w: np.ndarray, convection: bool = True
-                       ) -> np.ndarray:
-        """``(((u - w) . grad) u, v_i)`` (``convection``) or ``((-w . grad) u, v_i)``."""
-        return self._vector(u, 1.0 if convection else 0.0, w, 1.0, u)
-
-    def residual(self, u: np.ndarray) -> np.ndarray:
-        """``N(u) u``."""
-        return self.apply(u, u)
-
-    def jacobian_action(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
-        """``N(u) du + N(du) u``."""
-        return self.apply(u, du) + self.apply(du, u)
-
-    def relative_jacobian_action(self, u: np.ndarray, w: np.ndarray, du: np.ndarray
-                                 ) -> np.ndarray:
-        """``((u - w) . grad) du + (du . grad) u``."""
-        return self._vector(u, 1.0, w, 1.0, du) + self.apply(du, u)
 
     def jacobian(self, u: np.ndarray, newton: bool = True) -> sp.csr_matrix:
         """Newton (or Picard, ``newton=False``) matrix at ``u`` on :attr:`pattern`."""

@@ -161,22 +161,11 @@ def _draw_particles(pl, particles, z):
         pl.add_mesh(walls, color=WALL_FILL, lighting=False)
     if cores.n_cells:
         pl.add_mesh(cores.translate((0, 0, z[2])), color=CORE_FILL, lighting=False)
-    if shadows.n_cells:
-        pl.add_mesh(
-            shadows.translate((0, 0, z[3])),
-            style="wireframe",
-            color=SHADOW_EDGE,
-            line_width=1.5,
-            lighting=False,
-        )
-    if cores.n_cells:
-        pl.add_mesh(
-            cores.translate((0, 0, z[4])),
-            style="wireframe",
-            color=CORE_EDGE,
-            line_width=2.5,
-            lighting=False,
-        )
+    for cells, z_k, colour, width in ((shadows, z[3], SHADOW_EDGE, 1.5),
+                                      (cores, z[4], CORE_EDGE, 2.5)):
+        if cells.n_cells:  # outlines: shadows thin and orange, cores thick and black
+            pl.add_mesh(cells.translate((0, 0, z_k)), style="wireframe", color=colour,
+                        line_width=width, lighting=False)
 
 
 def _streamlines(pv, surface, flow, box, density: int):
