@@ -80,14 +80,26 @@ class TaylorHood:
         return (f"TaylorHood(P2/P1 on {self.mesh.p.shape[1]} vertices, {self.mesh.t.shape[1]} "
                 f"triangles: {self.nu} velocity + {self.np_} pressure = {self.N} unknowns)")
 
-    def __getattr__(self, name):
+    @cached_property
+    def _bases(self) -> tuple[Basis, Basis, Basis]:
         # the scikit-fem bases are built only when something asks for them
-        if name in ("ub", "pb", "sb") and "mesh" in self.__dict__:
-            ub = Basis(self.mesh, ElementVector(ElementTriP2()), intorder=self.intorder)
-            self.__dict__.update(ub=ub, pb=ub.with_element(ElementTriP1()),
-                                 sb=ub.with_element(ElementTriP2()))
-            return self.__dict__[name]
-        raise AttributeError(name)
+        ub = Basis(self.mesh, ElementVector(ElementTriP2()), intorder=self.intorder)
+        return ub, ub.with_element(ElementTriP1()), ub.with_element(ElementTriP2())
+
+    @property
+    def ub(self) -> Basis:
+        """The velocity basis (``ElementVector(ElementTriP2())``), built at first use."""
+        return self._bases[0]
+
+    @property
+    def pb(self) -> Basis:
+        """The pressure basis (``ElementTriP1()``), built at first use."""
+        return self._bases[1]
+
+    @property
+    def sb(self) -> Basis:
+        """A scalar P2 basis (vorticity, streamfunction), built at first use."""
+        return self._bases[2]
 
     @property
     def reference(self) -> TaylorHood:
@@ -126,7 +138,9 @@ class TaylorHood:
             raise ValueError(f"p: must be finite vertex positions of shape {ref.mesh.p.shape}")
         rb = ref.reference_blocks
         rb.check(p)  # raises on an inverted triangle
-        new = object.__new__(TaylorHood)
+        # an alternative constructor: __init__ would number the DOFs again, which a moved
+        # space shares with its reference
+        new = TaylorHood.__new__(TaylorHood)
         d = new.__dict__
         # the reference's triangles as they are (sorted once when it was built)
         mesh = dataclasses.replace(ref.mesh, doflocs=p, sort_t=False)
