@@ -310,6 +310,36 @@ class MonolithicCoupling(RigidParticles):
                                 - rigid_rhs)
         return G, Rf, x
 
+    def _impose(self, xi_imposed, xi_n, xi_guess):
+        """Record the imposed particles' velocities at the step's end (Dirichlet data on their
+        outlines) and put them into the first guess, which is returned."""
+        self._xi_imposed = None
+        if not self.imposed.any():
+            return xi_guess
+        if xi_imposed is None:
+            raise ValueError("MonolithicCoupling.step: xi_imposed (3, K) is required: "
+                             "the coupling has particles with a prescribed motion")
+        self._xi_imposed = np.array(xi_imposed, dtype=float).reshape(3, self.K)
+        # the imposed particles where their motion puts them, from the first mesh on
+        xi_guess = np.array(xi_n if xi_guess is None else xi_guess, dtype=float)
+        xi_guess[:, self.imposed] = self._xi_imposed[:, self.imposed]
+        return xi_guess
+
+    def _rigid_rhs(self, hist_xi, F_ext, T_ext) -> np.ndarray:
+        """The rigid rows' right-hand side: external forces minus the BDF2 history's
+        inertia ``m (a1 xi_n + a2 xi_prev)``."""
+        m3 = np.stack([self.mass, self.mass, self.inertia])
+        ext = np.vstack([F_ext, T_ext[None, :]])
+        return self._rigid_vector(ext - m3 * hist_xi)
+
+    def _first_iterate(self, u, p, xi) -> np.ndarray:
+        """The corrector's first iterate from velocity, pressure (or zeros) and rigid guesses."""
+        x0 = np.zeros(self.space.N)
+        x0[: self.space.nu] = u
+        if p is not None:
+            x0[self.space.nu:] = p
+        return self.to_z(x0, xi)
+
     def step(self, dt: float, dt_prev: float | None, u_n, u_prev, xi_n, xi_prev,
              F_ext, T_ext, t_new: float, p_guess=None, u_guess=None, xi_guess=None,
              geometry=None, xi_imposed=None):
@@ -343,24 +373,14 @@ class MonolithicCoupling(RigidParticles):
             ``x`` (full fluid vector), ``xi`` (3, K), ``force`` (2, K),
             ``torque`` (K,), ``iterations``.
         """
-        self._xi_imposed = None
-        if self.imposed.any():
-            if xi_imposed is None:
-                raise ValueError("MonolithicCoupling.step: xi_imposed (3, K) is required: "
-                                 "the coupling has particles with a prescribed motion")
-            self._xi_imposed = np.array(xi_imposed, dtype=float).reshape(3, self.K)
-            # the imposed particles where their motion puts them, from the first mesh on
-            xi_guess = np.array(xi_n if xi_guess is None else xi_guess, dtype=float)
-            xi_guess[:, self.imposed] = self._xi_imposed[:, self.imposed]
+        xi_guess = self._impose(xi_imposed, xi_n, xi_guess)
         a0, a1, a2 = ts.bdf2_coefficients(dt, dt_prev)
         self.reference_op.time = self.op.time = t_new  # where user terms are assembled
         rho = self.fluid.density
         hist_u = a1 * u_n + (a2 * u_prev if dt_prev is not None else 0.0)
         rhs_u = -rho * (self.space.M @ hist_u)
-        hist_xi = a1 * xi_n + (a2 * xi_prev if dt_prev is not None else 0.0)
-        m3 = np.stack([self.mass, self.mass, self.inertia])
-        ext = np.vstack([F_ext, T_ext[None, :]])
-        rigid_rhs = self._rigid_vector(ext - m3 * hist_xi)
+        rigid_rhs = self._rigid_rhs(a1 * xi_n + (a2 * xi_prev if dt_prev is not None else 0.0),
+                                    F_ext, T_ext)
         self.factors.operator(a0)
         current = {"A_uu": None, "rhs_u": rhs_u}
 
@@ -377,11 +397,8 @@ class MonolithicCoupling(RigidParticles):
         if geometry is not None:
             refresh(xi_n if xi_guess is None else xi_guess)
         x_D = self.imposed_values(self.x_dirichlet(t_new), self._xi_imposed)
-        x0 = np.zeros(self.space.N)
-        x0[: self.space.nu] = u_n if u_guess is None else u_guess
-        if p_guess is not None:
-            x0[self.space.nu:] = p_guess
-        z = self.to_z(x0, xi_n if xi_guess is None else xi_guess)
+        z = self._first_iterate(u_n if u_guess is None else u_guess, p_guess,
+                                xi_n if xi_guess is None else xi_guess)
         scale = max(float(np.abs(u_n).max()), float(np.abs(xi_n[:2]).max()), 1e-12)
         t0 = time.perf_counter()
         # the chord loop corrects each linear solve's error itself (exact residuals), so

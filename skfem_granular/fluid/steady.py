@@ -49,6 +49,28 @@ def _newton_or_continuation(space, fluid, velocity, initial, options: dict,
     return flow
 
 
+def _initial_state(op, initial) -> np.ndarray:
+    """The first iterate: ``initial`` (a Flow or a vector) or zeros, with the boundary data."""
+    x = np.zeros(op.space.N)
+    if initial is not None:
+        x[:] = initial.x if isinstance(initial, Flow) else np.asarray(initial, dtype=float)
+    op.apply_dirichlet(x)
+    return x
+
+
+def _flow(op, x: np.ndarray, report: SolveReport, solver_stats: dict, times: dict) -> Flow:
+    """The solution as a :class:`Flow` (pressure normalised, the report completed)."""
+    op.normalize_pressure(x)
+    report.solver = solver_stats
+    report.wall_time = times
+    nu = op.space.nu
+
+    def residual_u(xx, op=op):
+        return op.residual(xx)[:nu]
+
+    return Flow(op, x, residual_u, report=report)
+
+
 def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *,
                  body_force=None, viscous: str = "auto", solver="auto", tol: float = 1e-10,
                  maxiter: int = 25, initial: Flow | np.ndarray | None = None,
@@ -130,10 +152,7 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
         times["solve"] += time.perf_counter() - t0
         return dx
 
-    x = np.zeros(space.N)
-    if initial is not None:
-        x[:] = initial.x if isinstance(initial, Flow) else np.asarray(initial, dtype=float)
-    op.apply_dirichlet(x)
+    x = _initial_state(op, initial)
     report = SolveReport()
     # reference size: the residual of the zero-interior state with boundary data
     r = op.residual(x)
@@ -180,12 +199,5 @@ def solve_steady(mesh, fluid: Fluid, velocity: dict, convection: bool = False, *
                 f"(relative residual {report.residuals[-1]:.2e} > tol {tol:.0e}); the Reynolds "
                 f"number may be too high for this mesh: try continuation='auto', initial=a "
                 f"flow at lower speed, or a larger maxiter")
-    op.normalize_pressure(x)
-    report.solver = lin.stats.as_dict()
     times["total"] = time.perf_counter() - t_start
-    report.wall_time = times
-
-    def residual_u(xx, op=op):
-        return op.residual(xx)[: space.nu]
-
-    return Flow(op, x, residual_u, report=report)
+    return _flow(op, x, report, lin.stats.as_dict(), times)
