@@ -26,6 +26,8 @@ from skfem_granular.collapse import (
     flowing_solid_fraction,
     front_froude,
     front_position,
+    front_speed,
+    front_vertex,
     history_columns,
     initial_column,
     kinetic_energies,
@@ -90,6 +92,35 @@ def test_profile_energies_froude_exact():
     assert flowing_solid_fraction(lattice, np.ones(12), 0.5) == pytest.approx(
         12 * 0.64 / (3.8 * 2.8), rel=1e-12)
     assert np.isnan(flowing_solid_fraction(lattice, np.zeros(12), 0.5))
+
+
+def test_front_speed_is_the_rate_of_the_front_and_has_no_jumps():
+    """A square moving at (vx, vy) and turning at omega: its front point's speed
+    equals the centred difference of L(t) (exact for the rigid motion to O(dt^2));
+    a grain joining the mass moves L by a jump that dL/dt sees and the speed does not."""
+    local = Polygon.rectangle(-0.5, -0.5, 0.5, 0.5).vertices
+    v, w, c0 = np.array([0.3, -0.1]), 2.0, np.array([1.0, 0.5])
+
+    def at(t):
+        a = 0.2 + w * t
+        R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        c = c0 + v * t
+        return [R @ local + c[:, None]], c
+
+    (P,), c = at(0.0)
+    L, k, j = front_vertex([P])
+    assert (k, L) == (0, P[0].max())
+    U = front_speed([P], k, j, c[:, None], v[:, None], np.array([w]))
+    dt = 1e-6
+    dL = (front_position(at(dt)[0]) - front_position(at(-dt)[0])) / (2 * dt)
+    assert U == pytest.approx(dL, rel=1e-6)
+    # a second grain at rest touching the first: the front jumps, its speed is 0
+    Q = Polygon.rectangle(2.4, 0.0, 3.4, 1.0).vertices
+    L2, k2, j2 = front_vertex([P, Q])
+    assert (k2, L2) == (1, 3.4)
+    assert front_speed([P, Q], k2, j2, np.array([[1.0, 2.9], [0.5, 0.5]]),
+                       np.array([[0.3, 0.0], [-0.1, 0.0]]), np.array([w, 0.0])) == 0.0
+    assert front_vertex([Q], gap=0.1) == (0.0, -1, -1)  # 2.4 from the wall: no mass
 
 
 def _elastic_energy(sim):

@@ -20,6 +20,8 @@ from .measures import (
     flowing_solid_fraction,
     front_froude,
     front_position,
+    front_speed,
+    front_vertex,
     grain_outlines,
     height_at,
     kinetic_energies,
@@ -36,7 +38,8 @@ from .setup import FRICTION, column_scene, column_toml, tank_size, time_scale
 __all__ = ["DRY_LAWS", "FRICTION", "DryCollapse", "collapse_series", "column_scene", "column_toml",
            "deposit_profile",
            "dry_runout", "excess_pressure", "flow_pressure", "flowing_solid_fraction",
-           "frame_pressure", "front_froude", "front_position", "grain_outlines", "height_at",
+           "frame_pressure", "front_froude", "front_position", "front_speed", "front_vertex",
+           "grain_outlines", "height_at",
            "history_columns", "initial_column", "kinetic_energies", "line_points",
            "local_outlines", "mass_front", "masses", "normalised_runout", "plots", "realisations",
            "reference_point", "run_dry", "tank_size", "time_scale"]

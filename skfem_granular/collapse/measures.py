@@ -11,7 +11,9 @@ normalise with the packing's ``L0``, ``H0`` and ``tau_c = sqrt(H0 / g)``.
 - :func:`deposit_profile`, :func:`height_at`: the free surface ``h(x)`` (the upper
   boundary of the grains);
 - :func:`kinetic_energies`: horizontal, vertical and rotational kinetic energy;
-- :func:`front_froude`: ``Fr = (dL/dt) / sqrt(g H0)``;
+- :func:`front_froude`: ``Fr = (dL/dt) / sqrt(g H0)``; :func:`front_vertex` and
+  :func:`front_speed`: the point at the front and its speed (no jumps where the
+  front passes to another grain);
 - :func:`flowing_solid_fraction`: grain area over hull area of the moving grains.
 """
 
@@ -24,6 +26,7 @@ from ..dem.polygon import polygon_area, polygon_properties
 from ..packing import Packing
 
 __all__ = ["deposit_profile", "flowing_solid_fraction", "front_froude", "front_position",
+           "front_speed", "front_vertex",
            "grain_outlines", "height_at", "kinetic_energies", "local_outlines", "masses",
            "mass_front", "normalised_runout", "realisations"]
 
@@ -58,17 +61,48 @@ def front_position(outlines, x_wall: float = 0.0, gap: float | None = None) -> f
     ``gap`` (default: the largest grain's width) ends the mass, so grains thrown
     ahead of it do not count.
     """
+    return front_vertex(outlines, x_wall, gap)[0]
+
+
+def front_vertex(outlines, x_wall: float = 0.0,
+                 gap: float | None = None) -> tuple[float, int, int]:
+    """:func:`front_position` and the point that sets it.
+
+    Returns
+    -------
+    position : float
+        The front ``L`` (``x_wall`` when no grain reaches the wall's mass).
+    grain, vertex : int
+        The grain and the vertex of its outline at the front (``-1, -1`` when none).
+    """
     lo = np.array([P[0].min() for P in outlines])
     hi = np.array([P[0].max() for P in outlines])
     if gap is None:
         gap = float((hi - lo).max())
-    order = np.argsort(lo)
-    end = x_wall
-    for k in order:
+    end, grain = x_wall, -1
+    for k in np.argsort(lo):
         if lo[k] > end + gap:
             break
-        end = max(end, hi[k])
-    return float(end)
+        if hi[k] > end:
+            end, grain = float(hi[k]), int(k)
+    vertex = int(np.argmax(outlines[grain][0])) if grain >= 0 else -1
+    return end, grain, vertex
+
+
+def front_speed(outlines, grain: int, vertex: int, centroids, velocities,
+                omegas) -> float:
+    """Horizontal speed of the front's point, ``vx - omega (y_p - y_c)`` of its grain.
+
+    The rate ``dL/dt`` of :func:`front_froude` jumps where the front passes from one
+    grain to another (a grain joining or leaving the mass); the speed of the grain
+    material at the front does not, and equals ``dL/dt`` while the front stays on
+    one vertex. ``centroids`` and ``velocities`` are ``(2, N)``, ``omegas`` ``(N,)``;
+    0 when there is no front (``grain < 0``).
+    """
+    if grain < 0:
+        return 0.0
+    y_p = outlines[grain][1, vertex]
+    return float(velocities[0][grain] - omegas[grain] * (y_p - centroids[1][grain]))
 
 
 def _separation(P: np.ndarray, Q: np.ndarray) -> float:

@@ -13,8 +13,8 @@ from ..io import read_csv
 from ..packing import Packing
 from .measures import (
     flowing_solid_fraction,
-    front_froude,
-    front_position,
+    front_speed,
+    front_vertex,
     grain_outlines,
     height_at,
     kinetic_energies,
@@ -67,8 +67,10 @@ def collapse_series(columns, packing: Packing, domain, gravity: float = 9.81,
     dict of arrays
         ``t``, ``t_over_tau`` (``t / sqrt(H0/g)``), ``front`` (m, from the left wall),
         ``runout`` (``(L - L0) / L0``), ``gate_height`` (``h`` at the gate over ``H0``),
-        ``E_x``, ``E_y``, ``E_rot`` (J/m), ``froude`` (``(dL/dt) / sqrt(g H0)``; 0 with a
-        single row), ``flowing_fraction`` (:func:`flowing_solid_fraction`; NaN with fewer
+        ``E_x``, ``E_y``, ``E_rot`` (J/m), ``froude`` (``U_f / sqrt(g H0)``, ``U_f`` the
+        horizontal speed of the grain material at the front, :func:`front_speed`: unlike
+        the differences of ``L``, it does not jump where the front passes to another
+        grain), ``flowing_fraction`` (:func:`flowing_solid_fraction`; NaN with fewer
         than three flowing grains).
     """
     get = columns.get if isinstance(columns, dict) else lambda c: getattr(columns, c)
@@ -82,11 +84,15 @@ def collapse_series(columns, packing: Packing, domain, gravity: float = 9.81,
     rows = []
     for i in range(t.size):
         P = [Q - np.array([[x0], [y0]]) for Q in grain_outlines(local, X[i], Y[i], A[i])]
-        rows.append((front_position(P), height_at(P, L0, packing.d_max) / H0,
+        front, k, j = front_vertex(P)
+        U_f = front_speed(P, k, j, np.vstack([X[i] - x0, Y[i] - y0]),
+                          np.vstack([VX[i], VY[i]]), W[i])
+        rows.append((front, height_at(P, L0, packing.d_max) / H0,
                      *kinetic_energies(m, J, np.vstack([VX[i], VY[i]]), W[i]),
-                     flowing_solid_fraction(P, np.hypot(VX[i], VY[i]), v_flow)))
-    R = np.array(rows).reshape(-1, 6)
-    Fr = front_froude(t, R[:, 0], H0, gravity) if t.size > 1 else np.zeros(t.size)
+                     flowing_solid_fraction(P, np.hypot(VX[i], VY[i]), v_flow),
+                     U_f / np.sqrt(gravity * H0)))
+    R = np.array(rows).reshape(-1, 7)
+    Fr = R[:, 6]
     return {"t": t, "t_over_tau": t / np.sqrt(H0 / gravity), "front": R[:, 0],
             "runout": (R[:, 0] - L0) / L0, "gate_height": R[:, 1], "E_x": R[:, 2],
             "E_y": R[:, 3], "E_rot": R[:, 4], "froude": Fr, "flowing_fraction": R[:, 5]}
