@@ -14,7 +14,8 @@ writes its output folder ``out/collapse_matrix/<run>`` with a checkpoint every
 ``--checkpoint-every`` steps: a run cut off is continued where its checkpoint stands the
 next time this script is started (:meth:`Simulation.resume`), a finished one is read
 back, not run again. Per run the JSON records the cost (CPU, wall, DOFs, steps) and the
-run-out series (:func:`skfem_granular.collapse.collapse_series`); per set-up
+run-out series (:func:`skfem_granular.collapse.collapse_series`); ``cpu_s`` and ``wall_s``
+are summed over the processes that ran it (kept in its folder's ``cost.json``); per set-up
 (state, medium, core ratio) the final run-out (the deposit's mass front,
 :func:`skfem_granular.collapse.mass_front`), the largest front Froude number and the
 time to 90 % of the final run-out as mean and spread over the seeds
@@ -94,6 +95,22 @@ def measure(pk, folder: Path, domain) -> dict:
                        for k in ("t_over_tau", "runout", "E_x", "E_y", "froude")}}
 
 
+def add_cost(folder: Path, cpu: float, wall: float, dofs: list) -> dict:
+    """Add this process's share to the run's ``cost.json`` and return the totals."""
+    path = folder / "cost.json"
+    c = json.loads(path.read_text()) if path.exists() else {
+        "cpu_s": 0.0, "wall_s": 0.0, "processes": 0, "dofs_sum": 0, "dofs_steps": 0}
+    if dofs:  # a process that stepped (not one that only read a finished run back)
+        c["cpu_s"] += cpu
+        c["wall_s"] += wall
+        c["processes"] += 1
+        c["dofs_sum"] += int(np.sum(dofs))
+        c["dofs_steps"] += len(dofs)
+        path.write_text(json.dumps(c) + "\n")
+    return {"cpu_s": c["cpu_s"], "wall_s": c["wall_s"], "processes": c["processes"],
+            "dofs_mean": c["dofs_sum"] / c["dofs_steps"] if c["dofs_sum"] else None}
+
+
 def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict:
     from skfem_granular.collapse import time_scale
 
@@ -109,12 +126,12 @@ def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict:
         sim = simulation(pk, medium, core, tau_end * time_scale(pk), folder, every)
         domain = sim.scene.domain
         for _ in sim.evolve(progress=False):
-            if medium == "immersed":
-                dofs.append(int(sim.space.N))
+            dofs.append(int(sim.space.N) if medium == "immersed" else 0)
+    summary = json.loads((folder / "summary.json").read_text())
+    cost = add_cost(folder, time.process_time() - c0, time.perf_counter() - w0, dofs)
     rec = {"run": tag, "state": state, "medium": medium, "core_ratio": core, "seed": seed,
            "grains": pk.n, "solid_fraction": pk.solid_fraction, "tau_c": time_scale(pk),
-           "cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0,
-           "dofs_mean": float(np.mean(dofs)) if dofs else None}
+           **cost, "steps": summary.get("steps"), "remeshes": summary.get("remeshes")}
     rec.update(measure(pk, folder, domain))
     return rec
 
