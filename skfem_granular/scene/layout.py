@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from ..dem import ContactLaw, PrescribedMotion
 from ..fluid.properties import MAX_DENSITY, VISCOSITY_RANGE, Fluid
 from ._checks import MAX_LENGTH
-from ._keys import Docs, KeyDoc, key_names, toml_keys
+from ._keys import Docs, KeyDoc, check_table, key_names, toml_keys
 from .column import COLUMN_DOCS, ColumnSpec
 from .grid import GRID_DOCS, GridSpec
 from .sections import (
@@ -165,6 +165,10 @@ LAYOUT = (
             SCENE_DOCS),
     Section("output", "[output]", "What the run writes, and where.", SCENE_DOCS),
 )
+
+for _s in LAYOUT:  # each table has one entry per field of its class (Scene: in scene.py)
+    if _s.cls is not None:
+        check_table(_s.cls, _s.docs)
 
 #: The sections written as tables (``[[particles]]``: an array of them) at the top level.
 TABLES = frozenset(s.name for s in LAYOUT if s.name and "." not in s.name)
