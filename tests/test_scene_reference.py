@@ -283,3 +283,46 @@ def test_a_field_without_a_table_entry_is_refused():
         check_table(TimeSpec, {**TIME_DOCS, "gone": KeyDoc("float", "a removed field")})
     keys = toml_keys(Longer, {**TIME_DOCS, "substeps": KeyDoc("integer", "sub-steps")})
     assert list(keys)[-1] == "substeps" and keys["substeps"].default == 1
+
+
+_NUMBER = r"-?\d[\d.e+-]*"
+
+
+def _bad_values(row: dict[str, str]) -> list[tuple[object, str]]:
+    """``(value, bound)``: a value just outside each numeric bound of the allowed column
+    (``> 0``, ``>= -1000``, ``<= 1.6``, ``in [3, 1000]``) and that bound's text."""
+    integer = row["type"] == "`integer`"
+    out: list[tuple[object, str]] = []
+    for piece in re.split(r" and |; ", row["allowed"]):
+        piece = piece.strip()
+        if m := re.fullmatch(rf"(>=|>|<=) ({_NUMBER})", piece):
+            op, x = m.group(1), float(m.group(2))
+            bad = {">": x, ">=": x - 1 if integer else x - 0.5 * max(abs(x), 0.1),
+                   "<=": x + 1 if integer else 2 * x if x > 0 else x + 1}[op]
+            out.append((int(bad) if integer else bad, piece))
+        elif m := re.fullmatch(rf"in \[({_NUMBER}), ({_NUMBER})\]", piece):
+            lo, hi = float(m.group(1)), float(m.group(2))
+            if integer:
+                out += [(int(lo) - 1, piece), (int(hi) + 1, piece)]
+            else:
+                out += [(lo / 10 if lo > 0 else lo - 1, piece), (hi * 10, piece)]
+    return out
+
+
+def test_the_allowed_ranges_are_the_ones_the_checks_name():
+    """A value just outside a listed bound fails with one line naming the key and that bound."""
+    where = {"": "scene", "particles": "particles[0]"}
+    checked = 0
+    for section, rows in ROWS.items():
+        for key, row in rows.items():
+            for bad, bound in _bad_values(row):
+                with pytest.raises(ValueError) as info:
+                    if section == "column":  # its ranges apply once the packing is read
+                        ColumnSpec("packing.npz", **{key: bad})
+                    else:
+                        Scene.from_dict(_with(section, key, bad))
+                msg = str(info.value)
+                name = f"{where.get(section, section)}.{key} = "
+                assert "\n" not in msg and msg.startswith(name) and bound in msg, (bad, msg)
+                checked += 1
+    assert checked >= 40

@@ -36,7 +36,7 @@ class KeyDoc:
     Attributes
     ----------
     type : str
-        The TOML type, e.g. ``"float"``, ``"[float, float]"``, ``"bool or \\"auto\\""``.
+        The TOML type, e.g. ``float``, ``[float, float]``, ``bool or "auto"``.
     meaning : str
         One line.
     allowed : str
