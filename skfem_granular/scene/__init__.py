@@ -7,20 +7,24 @@ raises a :class:`ValueError` with one line naming the field and the allowed
 range (``"time.dt = -1: must be a finite number > 0"``).
 
 Modules: :mod:`.sections` (:class:`Effects`, :class:`MeshSpec`,
-:class:`TimeSpec`, :class:`ParticleSpec`), :mod:`.parse` (TOML dictionary to
-:class:`Scene` arguments, :func:`grid_particles`), :mod:`.scene`
-(:class:`Scene`), :mod:`.catalog` (the scenes shipped in ``library/``:
+:class:`TimeSpec`, :class:`ParticleSpec`), :mod:`.grid` (:class:`GridSpec`),
+:mod:`.column` (:class:`~.column.ColumnSpec`), :mod:`.layout` (the sections of a
+scene file and the dataclass fields their keys are), :mod:`.parse` (TOML
+dictionary to :class:`Scene` arguments, :func:`grid_particles`), :mod:`.scene`
+(:class:`Scene`), :mod:`.reference` (the scene-file reference page,
+:func:`.reference.scene_reference`), :mod:`.catalog` (the scenes shipped in ``library/``:
 :func:`bundled`, :func:`bundled_scenes`; ``Scene.bundled(name)`` reads one).
 
 TOML layout (see ``library/single_particle.toml``; ``skfem-granular scenes``
-lists the bundled scenes)::
+lists the bundled scenes; every key with its type, default, allowed values and
+meaning: :func:`.reference.scene_reference`, the docs' scene-file reference)::
 
     [domain]    box = [x0, y0, x1, y1], wall_thickness
     [fluid]     density, viscosity                  (omit for a dry scene)
     [[particles]] sides, radius, center, angle | vertices; density, velocity,
                 angular_velocity, core_ratio, motion = {velocity, omega} |
                 {trajectory = [[t...], [x...], [y...], [angle...]]} (imposed motion)
-    [grid]      nx, ny, sides, radius, spacing, origin, density, core_ratio, jitter
+    [grid]      nx, ny, sides, radius, spacing, origin, density, core_ratio, jitter, seed
     [column]    packing (a .npz file of skfem_granular.packing), core_ratio: a column
                 against the left wall behind a gate removed at t = 0
     [contacts]  E, mu, gamma
@@ -31,9 +35,11 @@ lists the bundled scenes)::
     [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction,
                 mesh_motion = "fixed" | "ale", remesh_travel
     [output]    directory, vtu_every, checkpoint_every
+    gravity = [gx, gy]                              (top level, before the first section)
 """
 
 from .catalog import bundled, bundled_scenes, first_comment
+from .grid import GridSpec
 from .parse import (
     GRID_KEYS,
     MAX_SIDES,
@@ -53,6 +59,7 @@ __all__ = [
     "PARTICLE_KEYS",
     "SECTIONS",
     "Effects",
+    "GridSpec",
     "MeshSpec",
     "ParticleSpec",
     "Scene",

@@ -11,6 +11,19 @@ import numpy as np
 MAX_LENGTH = 1e3
 #: Largest initial angle of a particle (rad), either sign.
 MAX_ANGLE = 1e3
+#: Largest ``sides`` of a regular polygon (the paper's outlines have 24).
+MAX_SIDES = 1000
+
+
+def integer(where: str, name: str, value, lo: int, hi: int | None = None) -> int:
+    """An integer (not a bool) in ``[lo, hi]``."""
+    ok = isinstance(value, int) and not isinstance(value, bool) and value >= lo
+    if ok and hi is not None:
+        ok = value <= hi
+    if not ok:
+        rng = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
+        raise ValueError(f"{where}.{name} = {value!r}: must be an integer {rng}")
+    return value
 
 
 def num(section, name, value, *, lo=None, hi=None, lo_open=True, allow_none=False):

@@ -13,6 +13,7 @@ of that stiffness, which the scene allows at the start (``Scene.overlap_toleranc
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,14 +21,44 @@ import numpy as np
 from ..dem import Polygon
 from ..packing import Packing, load_packing
 from ._checks import check_keys, num
+from ._keys import Docs, KeyDoc, toml_keys
 from .sections import ParticleSpec
 
-__all__ = ["COLUMN_KEYS", "COLUMN_OVERLAP_FACTOR", "column_particles", "gate_position"]
-
-COLUMN_KEYS = {"packing", "core_ratio"}
+__all__ = ["COLUMN_DOCS", "COLUMN_KEYS", "COLUMN_OVERLAP_FACTOR", "ColumnSpec",
+           "column_particles", "gate_position"]
 
 #: a column scene allows overlaps at the start up to this many times its packing's largest
 COLUMN_OVERLAP_FACTOR = 1.5
+
+
+@dataclass(frozen=True)
+class ColumnSpec:
+    """A column: its packing and the fluid's outline of its grains.
+
+    Attributes
+    ----------
+    packing : Packing or str or Path
+        The packing, or its ``.npz`` file (read by :func:`column_particles`).
+    core_ratio : float
+        The fluid's outline of every grain over its contact outline, in ``(0, 1]``.
+    """
+
+    packing: Packing | str | Path
+    core_ratio: float = 0.8
+
+    def __post_init__(self):
+        object.__setattr__(self, "core_ratio", num("column", "core_ratio", self.core_ratio,
+                                                   lo=0, hi=1))
+
+
+#: The TOML keys of ``[column]``: one per field of :class:`ColumnSpec`.
+COLUMN_DOCS: Docs = {
+    "packing": KeyDoc("string", "the .npz file of a packing (skfem-granular pack), relative "
+                      "to the scene file", "a file path"),
+    "core_ratio": KeyDoc("float", "the fluid's outline of every grain: its polygon scaled by "
+                         "this", "> 0 and <= 1"),
+}
+COLUMN_KEYS = frozenset(toml_keys(ColumnSpec, COLUMN_DOCS))
 
 
 def gate_position(packing: Packing, domain) -> float:
@@ -74,9 +105,9 @@ def column_particles(d: dict, domain, base=None) -> tuple[list[ParticleSpec], Pa
         if base is not None and not path.is_absolute():
             path = Path(base) / path
         packing = load_packing(path)
-    core = num("column", "core_ratio", d.get("core_ratio", 0.8), lo=0, hi=1)
+    spec = ColumnSpec(packing, **{k: v for k, v in d.items() if k != "packing"})
     _check_fits(packing, domain, "column.packing")
     shift = np.array([[domain[0]], [domain[1]]])
     parts = [ParticleSpec(Polygon(P + shift, name=f"column[{k}]"), packing.density,
-                          core_ratio=core) for k, P in enumerate(packing.outlines)]
+                          core_ratio=spec.core_ratio) for k, P in enumerate(packing.outlines)]
     return parts, packing

@@ -6,19 +6,21 @@ import numpy as np
 
 from ..dem import ContactLaw, Polygon, PrescribedMotion
 from ..fluid.properties import Fluid
-from ._checks import MAX_ANGLE, MAX_LENGTH, check_keys, num, vec
+from ._checks import MAX_ANGLE, MAX_LENGTH, MAX_SIDES, check_keys, integer, num, vec
+from ._keys import KeyDoc
 from .column import COLUMN_OVERLAP_FACTOR, column_particles
-from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
+from .grid import GridSpec
+from .layout import SCENE_DOCS, SECTIONS, TABLES, section
+from .sections import DEFAULT_ANGLE, Effects, MeshSpec, ParticleSpec, TimeSpec
 
-SECTIONS = {"domain", "fluid", "particles", "grid", "contacts", "mesh", "time", "effects",
-            "coupling", "output", "gravity", "column"}
-PARTICLE_KEYS = {"sides", "radius", "center", "angle", "vertices", "density", "velocity",
-                 "angular_velocity", "core_ratio", "motion"}
-MOTION_KEYS = {"velocity", "omega", "trajectory"}
-GRID_KEYS = {"nx", "ny", "sides", "radius", "spacing", "origin", "density", "core_ratio",
-             "jitter", "seed"}
-#: largest ``sides`` of a regular polygon (the paper's outlines have 24)
-MAX_SIDES = 1000
+__all__ = ["GRID_KEYS", "MAX_PARTICLES", "MAX_SIDES", "MOTION_KEYS", "PARTICLE_KEYS", "SECTIONS",
+           "grid_particles", "scene_kwargs"]
+
+#: The keys of a ``[[particles]]`` entry, of its ``motion`` and of ``[grid]`` (from the
+#: dataclasses' fields, :mod:`.layout`).
+PARTICLE_KEYS = section("particles").keys
+MOTION_KEYS = section("particles.motion").keys
+GRID_KEYS = section("grid").keys
 #: most particles in a scene (``[[particles]]`` and ``[grid]`` together), checked before
 #: any of them is built (the bundled scenes have at most 210)
 MAX_PARTICLES = 10_000
@@ -28,17 +30,6 @@ def _table(name: str, value) -> dict:
     """``value`` if it is a TOML table, else a one-line error naming the section."""
     if not isinstance(value, dict):
         raise ValueError(f"{name} = {value!r}: must be a table ([{name}] section)")
-    return value
-
-
-def _int(where: str, name: str, value, lo: int, hi: int | None = None) -> int:
-    """An integer (not a bool) in ``[lo, hi]``."""
-    ok = isinstance(value, int) and not isinstance(value, bool) and value >= lo
-    if ok and hi is not None:
-        ok = value <= hi
-    if not ok:
-        rng = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
-        raise ValueError(f"{where}.{name} = {value!r}: must be an integer {rng}")
     return value
 
 
@@ -59,10 +50,11 @@ def _polygon(where: str, d: dict) -> Polygon:
                              "(give lengths in metres)") from None
     if "sides" not in d or "radius" not in d or "center" not in d:
         raise ValueError(f"{where}: give 'vertices', or 'sides', 'radius' and 'center'")
-    sides = _int(where, "sides", d["sides"], 3, MAX_SIDES)
+    sides = integer(where, "sides", d["sides"], 3, MAX_SIDES)
     r = num(where, "radius", d["radius"], lo=0, hi=MAX_LENGTH)
     c = vec(where, "center", d["center"], bound=MAX_LENGTH)
-    ang = num(where, "angle", d.get("angle", 0.0), lo=-MAX_ANGLE, hi=MAX_ANGLE, lo_open=False)
+    ang = num(where, "angle", d.get("angle", DEFAULT_ANGLE), lo=-MAX_ANGLE, hi=MAX_ANGLE,
+              lo_open=False)
     try:
         return Polygon.regular(sides, r, center=c, angle=ang)
     except ValueError as exc:  # e.g. a radius below the round-off of the centre coordinates
@@ -120,25 +112,8 @@ def _particle(where: str, d: dict) -> ParticleSpec:
 def grid_particles(d: dict) -> list[ParticleSpec]:
     """An ``nx`` x ``ny`` block of regular polygons (the paper's Section 7 start)."""
     check_keys("grid", _table("grid", d), GRID_KEYS)
-    for key in ("nx", "ny"):
-        _int("grid", key, d.get(key), 1, 100)
-    sides = _int("grid", "sides", d.get("sides", 6), 3, MAX_SIDES)
-    seed = _int("grid", "seed", d.get("seed", 0), 0)
-    r = num("grid", "radius", d.get("radius"), lo=0, hi=MAX_LENGTH)
-    s = num("grid", "spacing", d.get("spacing", 2.2 * r), lo=2 * r, hi=MAX_LENGTH)
-    ox, oy = vec("grid", "origin", d.get("origin"), bound=MAX_LENGTH)
-    rho = num("grid", "density", d.get("density", 2650.0), lo=0)
-    core = num("grid", "core_ratio", d.get("core_ratio", 0.8), lo=0, hi=1)
-    jitter = num("grid", "jitter", d.get("jitter", 0.0), lo=0, lo_open=False, hi=np.pi)
-    rng = np.random.default_rng(seed)
-    out = []
-    for j in range(d["ny"]):
-        for i in range(d["nx"]):
-            c = (ox + i * s, oy + j * s)
-            ang = rng.uniform(-jitter, jitter) if jitter else 0.0
-            out.append(ParticleSpec(Polygon.regular(sides, r, center=c, angle=ang), rho,
-                                    core_ratio=core))
-    return out
+    required = {k: d.get(k) for k in ("nx", "ny", "radius", "origin")}  # None: refused
+    return GridSpec(**{**d, **required}).particles()
 
 
 def _check_count(parts: list, grid) -> None:
@@ -157,7 +132,7 @@ def _check_count(parts: list, grid) -> None:
 def _contact_law(c, column) -> ContactLaw:
     """The ``[contacts]`` table; a column's packing sets (and fixes) the stiffness ``E``."""
     c = _table("contacts", c)
-    check_keys("contacts", c, {"E", "mu", "gamma"})
+    check_keys("contacts", c, section("contacts").keys)
     # checked here with the TOML field names (and booleans refused as numbers)
     c = {k: num("contacts", k, v, lo=0, lo_open=(k == "E")) for k, v in c.items()}
     if column is not None:
@@ -172,6 +147,15 @@ def _contact_law(c, column) -> ContactLaw:
         raise ValueError(str(exc).replace("ContactLaw.", "contacts.")) from None
 
 
+def _scene_fields(name: str, d: dict) -> dict:
+    """The :class:`Scene` fields a section of the scene's own (``[coupling]``, ...) sets."""
+    out = {}
+    for field, doc in SCENE_DOCS.items():
+        if isinstance(doc, KeyDoc) and doc.section == name and (doc.key or field) in d:
+            out[field] = d[doc.key or field]
+    return out
+
+
 def scene_kwargs(data: dict, base=None) -> dict:
     """Keyword arguments of :class:`Scene` from the TOML dictionary.
 
@@ -182,7 +166,7 @@ def scene_kwargs(data: dict, base=None) -> dict:
             f"scene = {data!r}: must be a table of sections ({', '.join(sorted(SECTIONS))})"
         )
     check_keys("scene", data, SECTIONS)
-    for name in sorted(SECTIONS - {"particles", "gravity"}):
+    for name in sorted(TABLES - {"particles"}):
         if name in data:
             _table(name, data[name])
     parts = data.get("particles", [])
@@ -195,7 +179,7 @@ def scene_kwargs(data: dict, base=None) -> dict:
     dom = data.get("domain")
     if not isinstance(dom, dict) or "box" not in dom:
         raise ValueError("domain.box: missing; give [x0, y0, x1, y1] in metres")
-    check_keys("domain", dom, {"box", "wall_thickness"})
+    check_keys("domain", dom, section("domain").keys)
     kw["domain"] = vec("domain", "box", dom["box"], 4, bound=MAX_LENGTH)
     if "wall_thickness" in dom:
         kw["wall_thickness"] = num("domain", "wall_thickness", dom["wall_thickness"], lo=0,
@@ -204,7 +188,7 @@ def scene_kwargs(data: dict, base=None) -> dict:
     if fl is None:
         kw["fluid"] = None
     else:
-        check_keys("fluid", fl, {"density", "viscosity"})
+        check_keys("fluid", fl, section("fluid").keys)
         try:
             kw["fluid"] = Fluid(**fl)
         except ValueError as exc:
@@ -223,30 +207,15 @@ def scene_kwargs(data: dict, base=None) -> dict:
         kw["gravity"] = vec("scene", "gravity", data["gravity"])
     if "contacts" in data or column is not None:
         kw["contact_law"] = _contact_law(data.get("contacts", {}), column)
-    if "mesh" in data:
-        check_keys("mesh", data["mesh"], {"kind", "delta_l", "sigma", "h", "gap_spacing",
-                                          "wake"})
-        kw["mesh"] = MeshSpec(**data["mesh"])
-    if "time" in data:
-        check_keys("time", data["time"], {"t_end", "dt", "dem_dt", "adaptive", "tol", "dt_min"})
-        kw["time"] = TimeSpec(**data["time"])
-    if "effects" in data:
-        check_keys("effects", data["effects"], {"fluid", "gravity", "convection", "contacts",
-                                                 "rotation", "remeshing"})
-        kw["effects"] = Effects(**data["effects"])
-    if "coupling" in data:
-        c = data["coupling"]
-        check_keys("coupling", c, {"scheme", "remesh_fraction", "mesh_motion", "remesh_travel"})
-        kw["coupling"] = c.get("scheme", "monolithic")
-        for key in ("remesh_fraction", "mesh_motion", "remesh_travel"):
-            if key in c:
-                kw[key] = c[key]
-    if "output" in data:
-        o = data["output"]
-        check_keys("output", o, {"directory", "vtu_every", "checkpoint_every"})
-        kw["output_dir"] = o.get("directory")
-        if kw["output_dir"] is not None and not isinstance(kw["output_dir"], str):
-            raise ValueError(f"output.directory = {kw['output_dir']!r}: must be a string (a path)")
-        kw["vtu_every"] = o.get("vtu_every", 10)
-        kw["checkpoint_every"] = o.get("checkpoint_every", 0)
+    for name, cls in (("mesh", MeshSpec), ("time", TimeSpec), ("effects", Effects)):
+        if name in data:
+            check_keys(name, data[name], section(name).keys)
+            kw[name] = cls(**data[name])
+    for name in ("coupling", "output"):
+        if name in data:
+            check_keys(name, data[name], section(name).keys)
+            kw.update(_scene_fields(name, data[name]))
+    out = kw.get("output_dir")
+    if out is not None and not isinstance(out, str):
+        raise ValueError(f"output.directory = {out!r}: must be a string (a path)")
     return kw

@@ -12,7 +12,9 @@ import numpy as np
 from ..dem import ContactLaw, Polygon, PrescribedMotion, stable_time_step
 from ..fluid.properties import Fluid
 from ._checks import num, vec
+from ._keys import check_table
 from .catalog import bundled
+from .layout import SCENE_DOCS
 from .parse import MAX_PARTICLES, scene_kwargs
 from .sections import Effects, MeshSpec, ParticleSpec, TimeSpec
 
@@ -244,3 +246,6 @@ class Scene:
     def bundled(cls, name: str) -> Scene:
         """A scene shipped with the package, by name (``skfem-granular scenes`` lists them)."""
         return cls.from_toml(bundled(name))
+
+
+check_table(Scene, SCENE_DOCS)  # every field is a TOML key or marked as none

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, fields
 
 from ..dem import Particle, Polygon, PrescribedMotion
-from ._checks import num
+from ._checks import MAX_ANGLE, MAX_LENGTH, MAX_SIDES, num
+from ._keys import REQUIRED, Docs, KeyDoc
 
 
 @dataclass(frozen=True)
@@ -46,6 +48,22 @@ class Effects:
             if not isinstance(v, bool):
                 allowed = "true, false or 'auto'" if f.name == "contacts" else "true or false"
                 raise ValueError(f"effects.{f.name} = {v!r}: must be {allowed}")
+
+
+_BOOL = "true or false"
+#: The TOML keys of ``[effects]``: one per field of :class:`Effects`.
+EFFECTS_DOCS: Docs = {
+    "fluid": KeyDoc("bool", "the fluid; off: dry DEM, no mesh at all", _BOOL),
+    "gravity": KeyDoc("bool", "buoyancy-reduced gravity on the particles", _BOOL),
+    "convection": KeyDoc("bool", "Navier-Stokes; off: unsteady Stokes (one reused "
+                         "factorisation)", _BOOL),
+    "contacts": KeyDoc('bool or "auto"', "DEM contacts; \"auto\": on only when two shadows "
+                       "(or a shadow and a wall) can meet within the run",
+                       'true, false or "auto"'),
+    "rotation": KeyDoc("bool", "particles may rotate", _BOOL),
+    "remeshing": KeyDoc("bool", "rebuild the mesh when particles have moved (off: the run "
+                        "stops when they move too far)", _BOOL),
+}
 
 
 MESH_KINDS = ("auto", "field", "graded", "uniform", "group")
@@ -96,6 +114,24 @@ class MeshSpec:
             raise ValueError(f"mesh.wake = {self.wake!r}: must be true or false")
 
 
+#: The TOML keys of ``[mesh]``: one per field of :class:`MeshSpec`.
+MESH_DOCS: Docs = {
+    "kind": KeyDoc("string", "\"auto\": \"graded\" for one particle, \"field\" for more; "
+                   "\"group\": the paper's Fig. 13",
+                   ", ".join(f'"{k}"' for k in MESH_KINDS[:-1]) + f' or "{MESH_KINDS[-1]}"'),
+    "delta_l": KeyDoc("float", "mesh edge length on the particle outlines; not given: the "
+                      "polygon's edge length", "> 0", "m"),
+    "sigma": KeyDoc("float", "growth of the mesh size away from the particles; not given: "
+                    "the mesh kind's own", "> 1 and <= 1.6"),
+    "h": KeyDoc("float", "edge length of \"uniform\" meshes and of the fine region of "
+                "\"group\" meshes; not given: the outlines' mean edge", "> 0", "m"),
+    "gap_spacing": KeyDoc("float", "\"field\" meshes: outline node spacing along narrow gaps, "
+                          "over the gap's width; not given: 1/3", ">= 0.1"),
+    "wake": KeyDoc("bool", "\"graded\" meshes with the default sigma: finer circles while a "
+                   "particle's Reynolds number is above 40", _BOOL),
+}
+
+
 @dataclass(frozen=True)
 class TimeSpec:
     """Time span and steps (seconds).
@@ -141,6 +177,22 @@ class TimeSpec:
             raise ValueError(f"time.dt_min = {self.dt_min:g}: must be <= time.dt = {self.dt:g}")
 
 
+#: The TOML keys of ``[time]``: one per field of :class:`TimeSpec`.
+TIME_DOCS: Docs = {
+    "t_end": KeyDoc("float", "end time", "> 0", "s"),
+    "dt": KeyDoc("float", "the step (fixed steps), or the first and largest step (adaptive)",
+                 "> 0 and <= time.t_end", "s"),
+    "dem_dt": KeyDoc("float", "DEM subcycle step; not given: from the contact stiffness",
+                     "> 0 and <= the stable DEM step", "s"),
+    "adaptive": KeyDoc("bool", "steps chosen from the BDF2 local error estimate, at most dt",
+                       _BOOL),
+    "tol": KeyDoc("float", "adaptive steps: local error tolerance relative to the velocity "
+                  "scale", "> 0 and <= 1"),
+    "dt_min": KeyDoc("float", "adaptive steps: the smallest; a step that would need less "
+                     "stops the run", "> 0 and <= time.dt", "s"),
+}
+
+
 @dataclass(frozen=True)
 class ParticleSpec:
     """One particle: a convex polygon (shadow), its density, initial state and core.
@@ -180,3 +232,36 @@ class ParticleSpec:
             core_ratio=self.core_ratio,
             motion=self.motion,
         )
+
+
+#: The angle of a regular polygon's first vertex when not given (``Polygon.regular``'s).
+DEFAULT_ANGLE = inspect.signature(Polygon.regular).parameters["angle"].default
+_SHAPE = "give vertices, or sides, radius and center"
+#: The TOML keys of a ``[[particles]]`` entry: one per field of :class:`ParticleSpec`
+#: (the polygon as its ``vertices`` or as a regular polygon's ``sides``, ``radius``,
+#: ``center`` and ``angle``; ``motion`` is an inline table, ``MOTION_DOCS``).
+PARTICLE_DOCS: Docs = {
+    "polygon": (
+        KeyDoc("[[float, ...], [float, ...]]", "the polygon's vertices [[x0, x1, ...], "
+               "[y0, y1, ...]], convex and counter-clockwise", f"(2, N) finite; {_SHAPE}",
+               "m", key="vertices", default=REQUIRED),
+        KeyDoc("integer", "sides of a regular polygon", f"in [3, {MAX_SIDES}]; {_SHAPE}",
+               key="sides", default=REQUIRED),
+        KeyDoc("float", "circumradius of a regular polygon", f"> 0 and <= {MAX_LENGTH:g}", "m",
+               key="radius", default=REQUIRED),
+        KeyDoc("[float, float]", "centre of a regular polygon",
+               f"2 finite numbers within +-{MAX_LENGTH:g}", "m", key="center",
+               default=REQUIRED),
+        KeyDoc("float", "angle of a regular polygon's first vertex from the x axis",
+               f">= -{MAX_ANGLE:g} and <= {MAX_ANGLE:g}", "rad", key="angle",
+               default=DEFAULT_ANGLE),
+    ),
+    "density": KeyDoc("float", "particle density", "> 0", "kg/m^3"),
+    "velocity": KeyDoc("[float, float]", "initial velocity", "2 finite numbers", "m/s"),
+    "angular_velocity": KeyDoc("float", "initial angular velocity (counter-clockwise)",
+                               "a finite number", "rad/s"),
+    "core_ratio": KeyDoc("float", "the fluid's outline (core): the polygon scaled by this "
+                         "about its centroid", "> 0 and <= 1"),
+    "motion": KeyDoc("inline table", "an imposed rigid motion (table below); not given: free",
+                     "{ velocity, omega } or { trajectory }"),
+}
