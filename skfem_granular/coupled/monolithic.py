@@ -383,7 +383,7 @@ class MonolithicCoupling(RigidParticles):
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
         solve = self.solver.solve_correction if not self.op.linear else self.solver.solve
-        stall = ChordStall()
+        stall = ChordStall(self.max_iterations)
         refresh_time = [0.0]  # seconds of the refreshes (booked as assembly, factorisation)
 
         def stop(it, dz, z):
@@ -394,7 +394,7 @@ class MonolithicCoupling(RigidParticles):
                 raise ConvergenceError(f"coupled step dt={dt:.3e}: corrector produced NaN")
             tol = self.newton_tol * max(scale, float(np.abs(z[: self.nu_z]).max()))
             done = chord_converged(dn, 0.0 if stall.prev is None else stall.prev, it, tol)
-            stall.observe(it, dn, done)
+            stall.observe(it, dn, done, tol)
             return done
 
         def correct(z, G, it):

@@ -19,6 +19,7 @@ Jacobian at the iterate is factorised and the iteration goes on with it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -84,20 +85,28 @@ class ChordStall:
     The one rule of every chord iteration of the package, the fluid's
     :class:`~skfem_granular.fluid.unsteady.BDF2Integrator` and the
     :class:`~skfem_granular.coupled.monolithic.MonolithicCoupling`: when an update
-    is more than :data:`STALL_RATE` times the one before, the operator (the
-    BDF2-Stokes matrix, or an older Jacobian) is too far from this step's; the
-    caller factorises the Newton Jacobian at the iterate before the next
-    correction and goes on with it
+    is more than :data:`STALL_RATE` times the one before, or when at that rate the
+    updates would not come down to the tolerance within the iterations left, the
+    operator (the BDF2-Stokes matrix, or an older Jacobian) is too far from this
+    step's; the caller factorises the Newton Jacobian at the iterate before the
+    next correction and goes on with it
     (:meth:`~skfem_granular.fluid.factor_cache.FactorCache.factorize_system`),
     and later steps with the same ``a0`` keep it as their chord operator. The
     rate is judged on two updates made with the same operator: from the second
     iteration after a refresh on.
 
-    One object per step::
+    Parameters
+    ----------
+    max_iterations : int
+        The iteration limit of the step.
 
-        stall = ChordStall()
-        # after each update:        stall.observe(it, dn, done)
-        # before each correction:   if stall.refresh_due(it): factorise the Jacobian
+    Examples
+    --------
+    One object per step:
+
+    >>> stall = ChordStall(max_iterations=12)  # doctest: +SKIP
+    >>> stall.observe(it, dn, done, tol)       # after each update
+    >>> if stall.refresh_due(it): ...          # before each correction: factorise
 
     Attributes
     ----------
@@ -107,17 +116,24 @@ class ChordStall:
         Refreshes asked for in this step.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, max_iterations: int) -> None:
         self.rate = STALL_RATE
+        self.max_iterations = int(max_iterations)
         self.prev: float | None = None
         self.refreshes = 0
         self._due = False
         self._since = 0  # iteration of the last refresh (0: the operator the step began with)
 
-    def observe(self, it: int, dn: float, done: bool) -> None:
-        """Record update ``it`` of size ``dn`` (``done``: the iteration stops here)."""
+    def observe(self, it: int, dn: float, done: bool, tol: float) -> None:
+        """Record update ``it`` of size ``dn`` (``done``: the iteration stops here; ``tol``:
+        the size of update it stops at)."""
         prev, self.prev = self.prev, dn
-        if not done and prev is not None and it >= self._since + 2 and dn > self.rate * prev:
+        if done or prev is None or it < self._since + 2 or prev <= 0.0:
+            return
+        rate = dn / prev
+        # too slow, or (iterations still needed at this rate) too many for the limit
+        if rate > self.rate or (dn > tol and rate > 0.0 and math.log(tol / dn) / math.log(rate)
+                                > self.max_iterations - it):
             self._due = True
 
     def refresh_due(self, it: int) -> bool:

@@ -241,7 +241,7 @@ class BDF2Integrator:
         solve = self.solver.solve_correction if not op.linear else self.solver.solve
         it_state = {"scale": max(float(np.abs(u_n).max()), self.velocity_scale),
                     "dnorm": math.nan}
-        stall = ChordStall()
+        stall = ChordStall(self.max_iterations)
 
         def residual(x):
             t0 = time.perf_counter()
@@ -267,7 +267,7 @@ class BDF2Integrator:
             # a flow starting from rest has no velocity scale yet: use the iterate's
             scale = it_state["scale"] = max(it_state["scale"], float(np.abs(x[:nu]).max()))
             done = dnorm <= self.newton_tol * scale
-            stall.observe(it, dnorm, done)
+            stall.observe(it, dnorm, done, self.newton_tol * scale)
             return done
 
         it = newton_iterate(x, residual, correction, stop, max_iterations=self.max_iterations,
