@@ -12,9 +12,10 @@ callers is only what they pass in:
   coupled fluid + rigid-body system, stopping on the update with an estimate
   of the error left from the contraction rate (:func:`chord_converged`).
 
-Both chord iterations share one stall policy (:class:`ChordStall`): when the
-iteration contracts by less than :data:`STALL_RATE` per update, the Newton
-Jacobian at the iterate is factorised and the iteration goes on with it.
+Both chord iterations share one stall policy (:class:`ChordStall`): when an
+update is more than :data:`STALL_RATE` of the one before, or the contraction
+would not reach the tolerance within the iteration limit, the Newton Jacobian
+at the iterate is factorised and the iteration goes on with it.
 """
 
 from __future__ import annotations
@@ -73,9 +74,10 @@ def chord_converged(dn: float, prev: float, it: int, tol: float) -> bool:
 
 
 #: A chord iteration has stalled when an update is more than this fraction of the one
-#: before (:class:`ChordStall`). Measured against the rule "more than three further
-#: iterations at the current contraction rate" and against GMRES on the exact Jacobian
-#: in place of a refresh: docs/benchmarks.md, "One stall policy".
+#: before (:class:`ChordStall`; or when it would need more iterations than are left).
+#: Measured against the rule "more than three further iterations at the current
+#: contraction rate" and against GMRES on the exact Jacobian in place of a refresh:
+#: docs/benchmarks.md, "One stall policy".
 STALL_RATE = 0.3
 
 
