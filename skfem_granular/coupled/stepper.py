@@ -497,7 +497,10 @@ class CoupledStepper:
         """Advance to ``t_end`` (default ``scene.time.t_end``); yields ``(t, StepReport)``.
 
         The generator yields after every accepted step, with the DEM, the mesh and
-        :attr:`state` at that step; before the next step it remeshes if needed.
+        :attr:`state` at that step; before the next step it remeshes if needed. The
+        last step lands on ``t_end`` as :func:`~skfem_granular.fluid.evolve`'s does
+        (:func:`~skfem_granular.timestep.step_toward`) and is reported at ``t_end``
+        exactly; ``state.t`` stays the sum of the steps.
 
         Raises
         ------
