@@ -71,6 +71,33 @@ def milne_factor(dt: float, dt_prev: float | None) -> float:
     return Cc / (Cc + Cp)
 
 
+#: Relative rounding allowance of the end time: a step that reaches ``t_end`` to within
+#: ``END_RTOL`` of the nominal step ``dt`` lands on it (:func:`step_toward`, :func:`end_time`).
+END_RTOL = 1e-9
+
+
+def step_toward(t: float, step: float, t_end: float, dt: float) -> float:
+    """The step from ``t`` toward ``t_end``: ``step``, or the time remaining when that is
+    shorter by more than rounding (``END_RTOL dt``, ``dt`` the nominal step).
+
+    A remainder that differs from ``step`` only by the rounding of the summed steps keeps
+    ``step`` itself: the same BDF2 coefficients, so the factorisation held for them is
+    reused (a step shorter by 1e-16 would factorise anew for the last step).
+    """
+    remaining = t_end - t
+    return remaining if remaining < step and abs(remaining - step) > END_RTOL * dt else step
+
+
+def reached(t: float, t_end: float, dt: float) -> bool:
+    """Whether the summed steps ``t`` have reached ``t_end`` (to ``END_RTOL dt``)."""
+    return t >= t_end - END_RTOL * dt
+
+
+def end_time(t: float, t_end: float, dt: float) -> float:
+    """``t_end`` exactly when ``t`` is within rounding of it (``END_RTOL dt``), else ``t``."""
+    return float(t_end) if abs(t - t_end) <= END_RTOL * dt else t
+
+
 @dataclass
 class StepController:
     """Accept/reject and the next step size from the local error estimate.

@@ -305,10 +305,11 @@ def test_checkpoint_holding_a_newton_jacobian_resumes_bit_for_bit(tmp_path, monk
     from contextlib import closing
 
     import skfem_granular.coupled.monolithic as monolithic
+    import skfem_granular.fluid.newton as newton
     from skfem_granular.simulation import checkpoint
 
     converged = monolithic.chord_converged
-    monkeypatch.setattr(monolithic, "REFRESH_RATE", 0.0)
+    monkeypatch.setattr(newton, "STALL_RATE", 0.0)
     monkeypatch.setattr(monolithic, "chord_converged",
                         lambda dn, prev, it, tol: it >= 3 and converged(dn, prev, it, tol))
     base = Scene.from_toml(SCENES / "single_particle.toml")

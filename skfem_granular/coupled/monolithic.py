@@ -30,18 +30,18 @@ before that lag grows past a fraction of the element size
 (:mod:`skfem_granular.coupled.transfer`).
 
 The corrector is a chord iteration on the factorised BDF2-Stokes matrix; when it
-contracts by less than :data:`REFRESH_RATE` per iteration the coupled Newton
-Jacobian is factorised at the iterate and the iteration continues on it (later steps
-with the same ``a0`` reuse it). GMRES preconditioned by the held factorisation instead
-was measured on the collapse's contact phase: 12-25 iterations per correction, as
-costly as a new SuperLU factorisation at 20k unknowns.
+stalls (:class:`~skfem_granular.fluid.newton.ChordStall`, the rule of the fluid's
+integrator too) the coupled Newton Jacobian is factorised at the iterate and the
+iteration continues on it (later steps with the same ``a0`` reuse it). GMRES
+preconditioned by the held factorisation instead was measured on the collapse's
+contact phase: 12-25 iterations per correction, as costly as a new SuperLU
+factorisation at 20k unknowns.
 """
 
 from __future__ import annotations
 
 import time
 import weakref
-from typing import TypedDict
 
 import numpy as np
 import scipy.sparse as sp
@@ -50,29 +50,8 @@ from .. import timestep as ts
 from ..fluid.errors import ConvergenceError
 from ..fluid.factor_cache import FactorCache
 from ..fluid.linsolve import make_solver
-from ..fluid.newton import chord_converged, newton_iterate
+from ..fluid.newton import ChordStall, chord_converged, newton_iterate
 from .rigid import RigidParticles
-
-#: When the chord iteration contracts by less than this per iteration (the moving mesh in
-#: closing gaps, strong convection: far from the chord operator), the coupled Newton
-#: Jacobian is factorised at the iterate and the iteration continues on it (later steps
-#: with the same ``a0`` reuse it). Measured on the collapse against the rule of the fluid
-#: integrator (:func:`~skfem_granular.fluid.newton.chord_stalled`: refresh when more than
-#: ``patience`` further iterations would be needed at the current rate), to 0.08 s: this
-#: rule 130 refreshes and 5.1 iterations a step; patience 3: 184 and 4.3; 10: 93 and 6.2;
-#: 20: 80 and 7.6. With patience 10 the whole collapse took 0.97x this rule's CPU time at
-#: load 9 and 1.14-1.19x on a quieter machine: the saved factorisations cost more in
-#: chord iterations than they save.
-REFRESH_RATE = 0.3
-
-
-class _ChordState(TypedDict):
-    """What the chord iteration of a step carries from one iteration to the next."""
-
-    dn: float | None  # the last correction's size
-    refresh: bool  # factorise the Jacobian before the next correction
-    refreshed: int  # iteration of the last refresh
-    refresh_time: float  # seconds of the refreshes (booked as assembly, factorisation)
 
 
 class MonolithicCoupling(RigidParticles):
@@ -404,7 +383,8 @@ class MonolithicCoupling(RigidParticles):
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
         solve = self.solver.solve_correction if not self.op.linear else self.solver.solve
-        last: _ChordState = {"dn": None, "refresh": False, "refreshed": 0, "refresh_time": 0.0}
+        stall = ChordStall(self.max_iterations)
+        refresh_time = [0.0]  # seconds of the refreshes (booked as assembly, factorisation)
 
         def stop(it, dz, z):
             if self.op.linear and geometry is None:
@@ -413,21 +393,15 @@ class MonolithicCoupling(RigidParticles):
             if not np.isfinite(dn):
                 raise ConvergenceError(f"coupled step dt={dt:.3e}: corrector produced NaN")
             tol = self.newton_tol * max(scale, float(np.abs(z[: self.nu_z]).max()))
-            prev, last["dn"] = last["dn"], dn
-            done = chord_converged(dn, 0.0 if prev is None else prev, it, tol)
-            if (not done and it >= last["refreshed"] + 2 and prev is not None
-                    and dn > REFRESH_RATE * prev):
-                # the chord operator (the BDF2-Stokes matrix, or an older Jacobian) is too
-                # far from this step's: a fresh Newton Jacobian before the next correction
-                last["refresh"] = True
+            done = chord_converged(dn, 0.0 if stall.prev is None else stall.prev, it, tol)
+            stall.observe(it, dn, done, tol)
             return done
 
         def correct(z, G, it):
-            if last["refresh"]:
-                last["refresh"], last["refreshed"] = False, it
+            if stall.refresh_due(it):
                 t_refresh = time.perf_counter()
                 self.factorize_jacobian(self.E @ z + x_D, a0)  # booked as assembly, factorisation
-                last["refresh_time"] += time.perf_counter() - t_refresh
+                refresh_time[0] += time.perf_counter() - t_refresh
             return -solve(G)
 
         def residual(z):
@@ -442,7 +416,7 @@ class MonolithicCoupling(RigidParticles):
         if it is None:
             raise ConvergenceError(f"coupled step at t={t_new:.6g} (dt={dt:.3e}): corrector did "
                                    f"not converge in {limit} iterations")
-        self.timings["solve"] += time.perf_counter() - t0 - last["refresh_time"]
+        self.timings["solve"] += time.perf_counter() - t0 - refresh_time[0]
         t0 = time.perf_counter()
         if geometry is not None:
             refresh(self.rigid(z))

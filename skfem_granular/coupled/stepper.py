@@ -497,7 +497,10 @@ class CoupledStepper:
         """Advance to ``t_end`` (default ``scene.time.t_end``); yields ``(t, StepReport)``.
 
         The generator yields after every accepted step, with the DEM, the mesh and
-        :attr:`state` at that step; before the next step it remeshes if needed.
+        :attr:`state` at that step; before the next step it remeshes if needed. The
+        last step lands on ``t_end`` as :func:`~skfem_granular.fluid.evolve`'s does
+        (:func:`~skfem_granular.timestep.step_toward`) and is reported at ``t_end``
+        exactly; ``state.t`` stays the sum of the steps.
 
         Raises
         ------
@@ -508,7 +511,6 @@ class CoupledStepper:
         sc = self.scene
         t_end = sc.time.t_end if t_end is None else float(t_end)
         dt = sc.time.dt
-        eps = 1e-9 * dt
         ctrl = None
         if sc.time.adaptive:
             ctrl = ts.StepController(tol=sc.time.tol, dt_min=sc.time.dt_min, dt_max=dt)
@@ -516,22 +518,23 @@ class CoupledStepper:
         step_target = dt if s.dt_prev is None else min(dt, 2.0 * s.dt_prev)
         if ctrl is not None and s.dt_next is not None:
             step_target = s.dt_next
-        while self.state.t < t_end - eps:
+        while not ts.reached(self.state.t, t_end, dt):
             self._remesh_if_moved()
             self._check_landing()
             s = self.state
             step = min(step_target, dt)
             if s.dt_prev is not None:
                 step = min(step, 2.0 * s.dt_prev)
-            remaining = t_end - s.t
             # land on t_end; keep the step (and the factorisation) if only rounding differs
-            if remaining < step and abs(remaining - step) > eps:
-                step = remaining
+            step = ts.step_toward(s.t, step, t_end, dt)
             new, res, acc, step = self._accepted(step, ctrl)
             step_target = min(dt, 2.0 * step) if ctrl is None else new.dt_next
-            yield new.t, StepReport(t=new.t, dt=step, iterations=res["iterations"],
-                                    force=res["force"], torque=res["torque"], acceleration=acc,
-                                    error=new.error, fluid_energy=self.fluid_energy())
+            # the last step reports t_end exactly; the clock (state.t) stays the sum of the
+            # steps, which a run resumed past t_end goes on from (Simulation.resume)
+            t = ts.end_time(new.t, t_end, dt)
+            yield t, StepReport(t=t, dt=step, iterations=res["iterations"],
+                                force=res["force"], torque=res["torque"], acceleration=acc,
+                                error=new.error, fluid_energy=self.fluid_energy())
 
     def _accepted(self, step: float, ctrl):
         """The accepted step from the current state; commits it (DEM and state)."""
@@ -562,7 +565,8 @@ class CoupledStepper:
             new.dt_next = out.proposal
         if new.euler and s.dt_prev is not None:
             self.euler_steps += 1
-        # t is the sum of the steps, not snapped to t_end (resumed runs stay bitwise)
+        # t is the sum of the steps, not snapped to t_end (a run resumed past its t_end
+        # goes on as the run that never stopped there); evolve reports t_end exactly
         self.dem.set_motion(q_new, xi_new, new.t)
         self.state = new
         return new, res, acc, out.step

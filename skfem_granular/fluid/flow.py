@@ -47,7 +47,7 @@ class StepInfo:
     iterations: int
     error: float | None
     rejected: int = 0
-    gmres: bool = False
+    refreshes: int = 0  # Newton Jacobians factorised where the chord iteration stalled
     wall_time: dict = field(default_factory=dict)
 
 

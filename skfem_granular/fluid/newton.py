@@ -7,11 +7,15 @@ callers is only what they pass in:
 - :func:`~skfem_granular.fluid.solve_steady`: a fresh Jacobian per iteration
   (Newton), stopping on the relative residual or update;
 - :class:`~skfem_granular.fluid.unsteady.BDF2Integrator`: the factorised
-  BDF2-Stokes operator (chord), switching to GMRES on the exact Jacobian when
-  the contraction is slow;
+  BDF2-Stokes operator (chord), stopping on the update;
 - the couplings of :mod:`skfem_granular.coupled`: the chord iteration on the
   coupled fluid + rigid-body system, stopping on the update with an estimate
   of the error left from the contraction rate (:func:`chord_converged`).
+
+Both chord iterations share one stall policy (:class:`ChordStall`): when an
+update is more than :data:`STALL_RATE` of the one before, or the contraction
+would not reach the tolerance within the iteration limit, the Newton Jacobian
+at the iterate is factorised and the iteration goes on with it.
 """
 
 from __future__ import annotations
@@ -69,19 +73,75 @@ def chord_converged(dn: float, prev: float, it: int, tol: float) -> bool:
     return dn <= tol or (rate < 0.5 and dn * rate / (1.0 - rate) <= tol)
 
 
-def chord_stalled(dn: float, prev: float | None, tol: float, patience: float = 3.0) -> bool:
-    """Whether a chord iteration is too slow to go on: it diverges, or, at its current
-    contraction rate ``dn / prev``, it would need more than ``patience`` further
-    iterations to bring the update ``dn`` down to ``tol``.
+#: A chord iteration has stalled when an update is more than this fraction of the one
+#: before (:class:`ChordStall`; or when it would need more iterations than are left).
+#: Measured against the rule "more than three further iterations at the current
+#: contraction rate" and against GMRES on the exact Jacobian in place of a refresh:
+#: docs/benchmarks.md, "One stall policy".
+STALL_RATE = 0.3
 
-    The fluid's BDF2 integrator then goes on with GMRES on the exact Jacobian
-    preconditioned by the same factorisation. (The monolithic coupling refreshes its
-    Jacobian on a simpler rate test, measured faster there:
-    :data:`~skfem_granular.coupled.monolithic.REFRESH_RATE`.)
+
+class ChordStall:
+    """When a chord iteration has stalled, and when to refresh its operator.
+
+    The one rule of every chord iteration of the package, the fluid's
+    :class:`~skfem_granular.fluid.unsteady.BDF2Integrator` and the
+    :class:`~skfem_granular.coupled.monolithic.MonolithicCoupling`: when an update
+    is more than :data:`STALL_RATE` times the one before, or when at that rate the
+    updates would not come down to the tolerance within the iterations left, the
+    operator (the BDF2-Stokes matrix, or an older Jacobian) is too far from this
+    step's; the caller factorises the Newton Jacobian at the iterate before the
+    next correction and goes on with it
+    (:meth:`~skfem_granular.fluid.factor_cache.FactorCache.factorize_system`),
+    and later steps with the same ``a0`` keep it as their chord operator. The
+    rate is judged on two updates made with the same operator: from the second
+    iteration after a refresh on.
+
+    Parameters
+    ----------
+    max_iterations : int
+        The iteration limit of the step.
+
+    Examples
+    --------
+    One object per step:
+
+    >>> stall = ChordStall(max_iterations=12)  # doctest: +SKIP
+    >>> stall.observe(it, dn, done, tol)       # after each update
+    >>> if stall.refresh_due(it): ...          # before each correction: factorise
+
+    Attributes
+    ----------
+    prev : float or None
+        The size of the last update.
+    refreshes : int
+        Refreshes asked for in this step.
     """
-    if prev is None or prev <= 0.0 or dn <= tol:
-        return False
-    rate = dn / prev
-    if rate >= 1.0:
+
+    def __init__(self, max_iterations: int) -> None:
+        self.rate = STALL_RATE
+        self.max_iterations = int(max_iterations)
+        self.prev: float | None = None
+        self.refreshes = 0
+        self._due = False
+        self._since = 0  # iteration of the last refresh (0: the operator the step began with)
+
+    def observe(self, it: int, dn: float, done: bool, tol: float) -> None:
+        """Record update ``it`` of size ``dn`` (``done``: the iteration stops here; ``tol``:
+        the size of update it stops at)."""
+        prev, self.prev = self.prev, dn
+        if done or prev is None or it < self._since + 2 or prev <= 0.0:
+            return
+        rate = dn / prev
+        # too slow, or (iterations still needed at this rate) too many for the limit
+        if rate > self.rate or (dn > tol and rate > 0.0 and math.log(tol / dn) / math.log(rate)
+                                > self.max_iterations - it):
+            self._due = True
+
+    def refresh_due(self, it: int) -> bool:
+        """Whether to factorise the Jacobian before correction ``it`` (counted if so)."""
+        if not self._due:
+            return False
+        self._due, self._since = False, it
+        self.refreshes += 1
         return True
-    return math.log(tol / dn) / math.log(max(rate, 1e-300)) > patience

@@ -8,9 +8,10 @@
    [-rho M (a1 u_n + a2 u_{n-1}) + f; 0]`` is solved by a fixed-operator
    ("chord") Newton iteration with the factorised BDF2-Stokes operator,
    which is reused while ``dt`` and the step ratio do not change; when the
-   chord iteration contracts slowly (convection-dominated steps) the same
-   factorisation preconditions GMRES on the exact Newton Jacobian, applied
-   matrix-free;
+   chord iteration stalls (convection-dominated steps) the Newton Jacobian at
+   the iterate is factorised and the iteration goes on with it, as later steps
+   with the same ``a0`` do (:class:`~skfem_granular.fluid.newton.ChordStall`, the
+   rule of the coupled corrector too);
 3. Milne's device gives the local error from the predictor-corrector
    difference, for adaptive steps.
 
@@ -26,7 +27,6 @@ import time
 from typing import cast
 
 import numpy as np
-import scipy.sparse.linalg as spla
 
 from .. import timestep as ts
 from .._validate import positive
@@ -35,7 +35,7 @@ from .errors import ConvergenceError
 from .factor_cache import FactorCache
 from .flow import Flow, SolveReport, StepInfo
 from .linsolve import make_solver
-from .newton import chord_stalled, newton_iterate
+from .newton import ChordStall, newton_iterate
 from .operator import NavierStokesOperator
 from .steady import as_space
 
@@ -179,23 +179,18 @@ class BDF2Integrator:
         return op, op.space.vertex_field(wv)
 
     # linear algebra ---------------------------------------------------------------
-    def _gmres_correction(self, x, r_free, a0, op=None, w_mesh=None):
-        """Solve the exact Newton system matrix-free, preconditioned by the chord operator."""
-        op = self.op if op is None else op
-        sp_ = op.space
-        free = op.free
-        A_uu = self.factors.A_uu if w_mesh is None else op.velocity_block(a0)
-
-        def matvec(v):
-            full = np.zeros(sp_.N)
-            full[free] = v
-            return op.jacobian_action(x, full, A_uu, w_mesh)[free]
-
-        n = free.size
-        J = spla.LinearOperator((n, n), matvec=matvec, dtype=float)
-        P = spla.LinearOperator((n, n), matvec=self.solver.solve, dtype=float)
-        dx, info = spla.gmres(J, -r_free, M=P, rtol=1e-10, atol=0.0, restart=30, maxiter=10)
-        return dx, info == 0
+    def _refresh(self, x: np.ndarray, a0: float, op, w_mesh) -> None:
+        """Factorise the Newton Jacobian at ``x`` (on ``op``'s mesh, with its mesh velocity
+        ``w_mesh``) and hold it as the chord operator for ``a0``: a stalled chord iteration
+        goes on with it, and so do later steps with the same ``a0``."""
+        t0 = time.perf_counter()
+        if w_mesh is None:
+            J = op.reduced_jacobian(x, c_mass=a0)
+        else:
+            J = op.reduced(op.jacobian(x, a0, w_mesh=w_mesh))
+        system = (op.velocity_block(a0), J, op.nu_free, op.solver_blocks(a0))
+        self.timings["assembly"] += time.perf_counter() - t0
+        self.factors.factorize_system(a0, system)
 
     def _coefficients(self, dt):
         return ts.bdf2_coefficients(dt, None if self.scheme == "euler" else self.dt_prev)
@@ -210,7 +205,9 @@ class BDF2Integrator:
         iterations : int
         err : float or None
             Scaled local error estimate (``None`` on the first step).
-        used_gmres : bool
+        refreshes : int
+            Newton Jacobians factorised because the chord iteration stalled
+            (:class:`~skfem_granular.fluid.newton.ChordStall`).
 
         Raises
         ------
@@ -243,7 +240,8 @@ class BDF2Integrator:
         # steps stop after one exact solve
         solve = self.solver.solve_correction if not op.linear else self.solver.solve
         it_state = {"scale": max(float(np.abs(u_n).max()), self.velocity_scale),
-                    "gmres": False, "prev": None, "dnorm": math.nan}
+                    "dnorm": math.nan}
+        stall = ChordStall(self.max_iterations)
 
         def residual(x):
             t0 = time.perf_counter()
@@ -252,11 +250,10 @@ class BDF2Integrator:
             return r
 
         def correction(x, r, it):
+            if stall.refresh_due(it):
+                self._refresh(x, a0, op, w_mesh)  # booked as assembly and factorisation
             t1 = time.perf_counter()
-            if it_state["gmres"]:
-                dx, _ = self._gmres_correction(x, r[free], a0, op, w_mesh)
-            else:
-                dx = -solve(r[free])
+            dx = -solve(r[free])
             self.timings["solve"] += time.perf_counter() - t1
             return dx
 
@@ -269,15 +266,9 @@ class BDF2Integrator:
                 raise ConvergenceError(f"BDF2 step dt={dt:.3e}: corrector produced NaN")
             # a flow starting from rest has no velocity scale yet: use the iterate's
             scale = it_state["scale"] = max(it_state["scale"], float(np.abs(x[:nu]).max()))
-            if dnorm <= self.newton_tol * scale:
-                return True
-            prev = it_state["prev"]
-            if not it_state["gmres"] and chord_stalled(dnorm, prev, self.newton_tol * scale):
-                # chord iterations contract linearly: switch to Newton-GMRES when
-                # more than three further chord iterations would be needed
-                it_state["gmres"] = True
-            it_state["prev"] = dnorm
-            return False
+            done = dnorm <= self.newton_tol * scale
+            stall.observe(it, dnorm, done, self.newton_tol * scale)
+            return done
 
         it = newton_iterate(x, residual, correction, stop, max_iterations=self.max_iterations,
                             index=free)
@@ -286,14 +277,13 @@ class BDF2Integrator:
                 f"BDF2 step at t={self.t:.6g}, dt={dt:.3e}: corrector did not converge in "
                 f"{self.max_iterations} iterations (update {it_state['dnorm']:.2e} > "
                 f"{self.newton_tol:.0e} x velocity scale {it_state['scale']:.2e})")
-        used_gmres = it_state["gmres"]
         self._last_rhs = rhs_u
         self._trial = (dt, op, w_mesh, it)
         err = None
         if self.dt_prev is not None and self.scheme == "bdf2":
             est = ts.milne_factor(dt, self.dt_prev) * (x[:nu] - u_pred)
             err = float(np.abs(est).max()) / max(float(np.abs(x[:nu]).max()), self.velocity_scale)
-        return x, it, err, used_gmres
+        return x, it, err, stall.refreshes
 
     def commit(self, x_new: np.ndarray, dt: float) -> None:
         """Make ``x_new`` the state at ``t + dt`` and shift the histories."""
@@ -368,11 +358,10 @@ def evolve(mesh, fluid, velocity: dict, *, dt: float, t_end: float, adaptive: bo
         raise ValueError(f"t_end = {t_end!r}: must be finite and > the initial time {integ.t}")
     ctrl = ts.StepController(tol=tol, max_ratio=max_ratio, dt_max=dt_max,
                              dt_min=dt * 1e-6 if dt_min is None else dt_min)
-    eps = 1e-12 * max(t_end, dt)
-    while integ.t < t_end - eps:
-        remaining = t_end - integ.t
+    while not ts.reached(integ.t, t_end, dt):
+        nominal = dt
         # land on t_end exactly; keep dt (and the factorisation) when only rounding differs
-        step = dt if abs(remaining - dt) <= 1e-9 * dt or remaining > dt else remaining
+        step = ts.step_toward(integ.t, dt, t_end, dt)
         if integ.dt_prev is not None:
             step = min(step, max_ratio * integ.dt_prev)
         t0 = time.perf_counter()
@@ -390,7 +379,7 @@ def evolve(mesh, fluid, velocity: dict, *, dt: float, t_end: float, adaptive: bo
                 f"evolve: {exc.rejections} rejected steps in a row at t={integ.t:.6g} "
                 f"(dt={exc.step:.3e}, error {exc.error:.2e} > tol {tol:.0e})") from None
         # what try_step returns (AcceptedStep.result is typed object)
-        x, its, err, gm = cast("tuple[np.ndarray, int, float | None, bool]", acc.result)
+        x, its, err, refreshes = cast("tuple[np.ndarray, int, float | None, int]", acc.result)
         step, rejected = acc.step, acc.halvings + acc.rejections
         if adaptive and err is not None:
             assert acc.proposal is not None  # the controller proposes with every estimate
@@ -398,9 +387,8 @@ def evolve(mesh, fluid, velocity: dict, *, dt: float, t_end: float, adaptive: bo
         elif acc.halvings:
             dt = step  # a halved step stays halved
         integ.commit(x, step)
-        if abs(integ.t - t_end) <= eps:
-            integ.t = float(t_end)
+        integ.t = ts.end_time(integ.t, t_end, nominal)
         flow = integ.flow()
         flow.step = StepInfo(t=integ.t, dt=step, iterations=its, error=err, rejected=rejected,
-                             gmres=gm, wall_time={"step": time.perf_counter() - t0})
+                             refreshes=refreshes, wall_time={"step": time.perf_counter() - t0})
         yield integ.t, flow

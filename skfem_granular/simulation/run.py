@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from .. import timestep as ts
 from ..coupled.build import build_mesh
 from ..coupled.stepper import CoupledStepper, SimulationError
 from ..dem import DEMSystem
@@ -229,9 +230,24 @@ class Simulation:
                 scene, sim.dem, saved, contacts_active=sim.contacts_active, timings=sim.timings,
                 terms=terms)
         sim.history.rows = list(data["history"])
+        sim._continue_clock()
         sim.steps_done = data["k"]
         sim._resumed_frames = data["frames"]
         return sim
+
+    def _continue_clock(self) -> None:
+        """A run resumed past the end of the run it continues: that run's last row reported
+        ``t_end`` exactly (:func:`~skfem_granular.timestep.end_time`), its clock is the sum
+        of the steps; the row gets the clock's time back, as the run that never stopped
+        there has it (the rows stay bit for bit those of one uninterrupted run)."""
+        rows, st = self.history.rows, self.stepper
+        if not rows or isinstance(st, DryStepper):
+            return
+        clock, dt = st.state.t, self.scene.time.dt
+        last = rows[-1]["t"]
+        if (last != clock and abs(last - clock) <= ts.END_RTOL * dt
+                and not ts.reached(clock, self.scene.time.t_end, dt)):
+            rows[-1] = dict(rows[-1], t=clock)
 
     # ------------------------------------------------------------------ views
     def __repr__(self) -> str:
