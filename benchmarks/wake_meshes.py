@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import signal
 import subprocess
 import time
 from pathlib import Path
@@ -31,6 +32,7 @@ import numpy as np
 
 import meshing
 from skfem_granular.coupled.flow_size import FlowSizing
+from skfem_granular.coupled.wake import WakeGrading
 from skfem_granular.scene import Scene
 from skfem_granular.simulation import Simulation
 
@@ -38,10 +40,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def scene(kind: str, offset: float, t_end: float, sigma: float | None,
-          height: float = 0.06, wake: bool = True) -> Scene:
+          height: float = 0.06, wake: bool = True, delta_l: float | None = None) -> Scene:
     mesh = {"kind": "field" if kind in ("field", "flow") else "graded", "wake": wake}
     if sigma is not None:
         mesh["sigma"] = sigma
+    if delta_l is not None:
+        mesh["delta_l"] = delta_l
     return Scene.from_dict({
         "domain": {"box": [0.0, 0.0, 0.02, height]},
         "fluid": {"density": 1000.0, "viscosity": 1e-3},
@@ -49,6 +53,10 @@ def scene(kind: str, offset: float, t_end: float, sigma: float | None,
                        "density": 1500.0}],
         "mesh": mesh, "effects": {"contacts": False},
         "time": {"t_end": t_end, "dt": 2.5e-4}}, name="wake_meshes")
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt(f"stopped by signal {signum}")
 
 
 def main():
@@ -63,11 +71,20 @@ def main():
                     help="channel height (m); released 2 cm below the top")
     ap.add_argument("--no-wake", action="store_true",
                     help="keep the default graded mesh's circles at every Reynolds number")
+    ap.add_argument("--delta-l", type=float, default=None,
+                    help="outline edge length (m); default: the 64-gon's edges, 0.123 mm")
+    ap.add_argument("--wake-sigma", type=float, default=None,
+                    help="growth factor of the default graded mesh's circles above Re 40 "
+                         "(default 1.05, WAKE_SIGMA)")
     ap.add_argument("--tag", default=None)
     a = ap.parse_args()
-    sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma, a.height, wake=not a.no_wake))
+    sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma, a.height, wake=not a.no_wake,
+                           delta_l=a.delta_l))
+    if a.wake_sigma is not None:
+        sim.stepper.wake_grading = WakeGrading(sigma=a.wake_sigma)
     if a.mesh == "flow":
         sim.stepper.flow_sizing = FlowSizing(eps=a.eps, budget=a.budget)
+    signal.signal(signal.SIGTERM, _interrupt)
     sizes = []
     t0, c0 = time.perf_counter(), time.process_time()
     failed = None
@@ -76,9 +93,10 @@ def main():
             if not sizes or sizes[-1][1] != sim.mesh.p.shape[1]:
                 sizes.append((float(sim.stepper.state.t), int(sim.mesh.p.shape[1]),
                               float(meshing.mesh_stats(sim.mesh).min_angle),
-                              sim.stepper.meshed.recipe.options.get("sigma")))
-    except Exception as exc:  # a run that stops still reports what it measured
-        failed = str(exc)
+                              sim.stepper.meshed.recipe.options.get("sigma"),
+                              int(sim.stepper.space.N)))
+    except (Exception, KeyboardInterrupt) as exc:  # a run that stops (or is stopped by
+        failed = str(exc) or type(exc).__name__     # SIGTERM) reports what it measured
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     h = sim.history
     t, x, vy = np.asarray(h.t), np.asarray(h.x[:, 0]), np.asarray(h.vy[:, 0])
@@ -87,7 +105,7 @@ def main():
            "height": a.height,
            "eps": a.eps if a.mesh == "flow" else None,
            "budget": a.budget if a.mesh == "flow" else None, "t_end": float(t[-1]),
-           "wake": not a.no_wake,
+           "wake": not a.no_wake, "delta_l": a.delta_l, "wake_sigma": a.wake_sigma,
            "failed": failed, "steps": len(t), "remeshes": sim.remeshes, "wall_s": wall,
            "cpu_s": cpu,
            "re_max": float(1000.0 * np.abs(vy).max() * 2.5e-3 / 1e-3),
@@ -95,6 +113,7 @@ def main():
            "t_lateral_max": float(t[int(np.argmax(np.abs(dx)))]),
            "vertices": [s[1] for s in sizes], "min_angles": [s[2] for s in sizes],
            "mesh_times": [s[0] for s in sizes], "mesh_sigmas": [s[3] for s in sizes],
+           "dofs": [s[4] for s in sizes],
            "history": {"t": t[::4].tolist(), "dx": dx[::4].tolist(), "vy": vy[::4].tolist()},
            "machine": platform.platform(),
            "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
