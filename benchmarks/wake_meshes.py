@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import signal
 import subprocess
 import time
 from pathlib import Path
@@ -107,10 +106,6 @@ def oscillation(t: np.ndarray, dx: np.ndarray, vy: np.ndarray, d: float,
             "extrema": int(te.size), "U": U, "strouhal": float(d / (period * U))}
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt(f"stopped by signal {signum}")
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--mesh", choices=["graded", "field", "flow"], default="graded")
@@ -136,7 +131,6 @@ def main():
         sim.stepper.wake_grading = WakeGrading(sigma=a.wake_sigma)
     if a.mesh == "flow":
         sim.stepper.flow_sizing = FlowSizing(eps=a.eps, budget=a.budget)
-    signal.signal(signal.SIGTERM, _interrupt)
     sizes = []
     t0, c0 = time.perf_counter(), time.process_time()
     failed = None
@@ -146,9 +140,13 @@ def main():
                 sizes.append((float(sim.stepper.state.t), int(sim.mesh.p.shape[1]),
                               float(meshing.mesh_stats(sim.mesh).min_angle),
                               sim.stepper.meshed.recipe.options.get("sigma"),
-                              int(sim.stepper.space.N)))
-    except (Exception, KeyboardInterrupt) as exc:  # a run that stops (or is stopped by
-        failed = str(exc) or type(exc).__name__     # SIGTERM) reports what it measured
+                              int(sim.stepper.space.N),
+                              getattr(sim.stepper.coupling.solver, "name", None)))
+            if len(sim.history.t) % 200 == 0:                 # progress, every 50 ms
+                print(f"t = {sim.stepper.state.t:.3f} s, {time.process_time() - c0:.0f} CPU s, "
+                      f"{sim.mesh.p.shape[1]} vertices", flush=True)
+    except Exception as exc:  # a run that stops still reports what it measured
+        failed = str(exc)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     h = sim.history
     t, x, vy = np.asarray(h.t), np.asarray(h.x[:, 0]), np.asarray(h.vy[:, 0])
@@ -165,7 +163,7 @@ def main():
            "t_lateral_max": float(t[int(np.argmax(np.abs(dx)))]),
            "vertices": [s[1] for s in sizes], "min_angles": [s[2] for s in sizes],
            "mesh_times": [s[0] for s in sizes], "mesh_sigmas": [s[3] for s in sizes],
-           "dofs": [s[4] for s in sizes],
+           "dofs": [s[4] for s in sizes], "solvers": sorted({str(s[5]) for s in sizes}),
            "history": {"t": t[::4].tolist(), "dx": dx[::4].tolist(), "vy": vy[::4].tolist()},
            "machine": platform.platform(),
            "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
