@@ -13,9 +13,15 @@ circles throughout (the default mesh before that rule).
 Records the lateral offset ``x - x0`` over time (largest, final), the largest
 Reynolds number, mesh sizes and the wall time.
 
+``--delta-l`` and ``--wake-sigma`` refine the default graded mesh (outline edges, and
+the circles above Re 40). ``--analyse TAG ...`` prints the oscillation of stored runs
+(:func:`oscillation`: period, amplitude, mean offset and Strouhal number from the
+extrema of the lateral offset between 0.65 and 1.04 s) instead of running.
+
 Writes ``benchmarks/results/wake_meshes_<tag>.json``.
 
-Usage: ``python benchmarks/wake_meshes.py --mesh flow --tag flow``
+Usage: ``python benchmarks/wake_meshes.py --mesh flow --tag flow``;
+``python benchmarks/wake_meshes.py --analyse tall_field tall_flow``
 """
 
 from __future__ import annotations
@@ -106,6 +112,21 @@ def oscillation(t: np.ndarray, dx: np.ndarray, vy: np.ndarray, d: float,
             "extrema": int(te.size), "U": U, "strouhal": float(d / (period * U))}
 
 
+def analyse(tags: list[str], window: tuple[float, float] = (0.65, 1.04)) -> None:
+    """Print the :func:`oscillation` of stored runs ``wake_meshes_<tag>.json``, one line each."""
+    for tag in tags:
+        r = json.loads((ROOT / f"benchmarks/results/wake_meshes_{tag}.json").read_text())
+        h = r["history"]
+        o = oscillation(h["t"], h["dx"], h["vy"], 2.5e-3, window)
+        dofs = r.get("dofs") or [None]
+        print(f"{tag}: vertices {r['vertices'][0]} / {max(r['vertices'])}, DOFs {dofs[0]} / "
+              f"{max(dofs, key=lambda n: n or 0)}, smallest angle {min(r['min_angles']):.1f}, "
+              f"period {o['period']:.4f} s ({o['periods'][0]:.4f}-{o['periods'][1]:.4f}), "
+              f"amplitude {o['amplitude'] * 1e6:.0f} um, mean {o['mean'] * 1e6:+.0f} um, "
+              f"{o['extrema']} extrema, St {o['strouhal']:.3f} (U = {o['U'] * 100:.2f} cm/s), "
+              f"CPU {r.get('cpu_s') or float('nan'):.0f} s, wall {r['wall_s']:.0f} s")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--mesh", choices=["graded", "field", "flow"], default="graded")
@@ -124,7 +145,11 @@ def main():
                     help="growth factor of the default graded mesh's circles above Re 40 "
                          "(default 1.05, WAKE_SIGMA)")
     ap.add_argument("--tag", default=None)
+    ap.add_argument("--analyse", nargs="+", metavar="TAG", default=None,
+                    help="print the oscillation in 0.65-1.04 s of stored runs and stop")
     a = ap.parse_args()
+    if a.analyse:
+        return analyse(a.analyse)
     sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma, a.height, wake=not a.no_wake,
                            delta_l=a.delta_l))
     if a.wake_sigma is not None:
