@@ -13,9 +13,15 @@ circles throughout (the default mesh before that rule).
 Records the lateral offset ``x - x0`` over time (largest, final), the largest
 Reynolds number, mesh sizes and the wall time.
 
+``--delta-l`` and ``--wake-sigma`` refine the default graded mesh (outline edges, and
+the circles above Re 40). ``--analyse TAG ...`` prints the oscillation of stored runs
+(:func:`oscillation`: period, amplitude, mean offset and Strouhal number from the
+extrema of the lateral offset between 0.65 and 1.04 s) instead of running.
+
 Writes ``benchmarks/results/wake_meshes_<tag>.json``.
 
-Usage: ``python benchmarks/wake_meshes.py --mesh flow --tag flow``
+Usage: ``python benchmarks/wake_meshes.py --mesh flow --tag flow``;
+``python benchmarks/wake_meshes.py --analyse tall_field tall_flow``
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ import numpy as np
 
 import meshing
 from skfem_granular.coupled.flow_size import FlowSizing
+from skfem_granular.coupled.wake import WakeGrading
 from skfem_granular.scene import Scene
 from skfem_granular.simulation import Simulation
 
@@ -38,10 +45,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def scene(kind: str, offset: float, t_end: float, sigma: float | None,
-          height: float = 0.06, wake: bool = True) -> Scene:
+          height: float = 0.06, wake: bool = True, delta_l: float | None = None) -> Scene:
     mesh = {"kind": "field" if kind in ("field", "flow") else "graded", "wake": wake}
     if sigma is not None:
         mesh["sigma"] = sigma
+    if delta_l is not None:
+        mesh["delta_l"] = delta_l
     return Scene.from_dict({
         "domain": {"box": [0.0, 0.0, 0.02, height]},
         "fluid": {"density": 1000.0, "viscosity": 1e-3},
@@ -49,6 +58,73 @@ def scene(kind: str, offset: float, t_end: float, sigma: float | None,
                        "density": 1500.0}],
         "mesh": mesh, "effects": {"contacts": False},
         "time": {"t_end": t_end, "dt": 2.5e-4}}, name="wake_meshes")
+
+
+def extrema(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The extrema of an oscillation ``y(t)``, one per half cycle.
+
+    The half cycles are split by the crossings of the mean of ``y``; each one's extremum
+    is its largest ``|y - mean|``, refined by the parabola through it and its two
+    neighbours. The partial half cycles at either end count only if their extremum
+    lies inside them (a turning point, not the end of the record). Returns times
+    ``(n,)`` and values ``(n,)``, alternating maxima and minima."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    m = float(y.mean())
+    s = np.sign(y - m)
+    cross = np.flatnonzero(s[1:] * s[:-1] < 0) + 1        # first sample after a crossing
+    bounds = np.concatenate([[0], cross, [y.size]])
+    te, ye = [], []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        k = a + int(np.argmax(np.abs(y[a:b] - m)))
+        if k == 0 or k == y.size - 1:                     # the record's end, not a turn
+            continue
+        c = np.polyfit(t[k - 1:k + 2] - t[k], y[k - 1:k + 2], 2)
+        tk = -c[1] / (2.0 * c[0]) if c[0] != 0.0 else 0.0
+        tk = tk if abs(tk) <= t[k + 1] - t[k] else 0.0
+        te.append(t[k] + tk)
+        ye.append(float(np.polyval(c, tk)))
+    return np.array(te), np.array(ye)
+
+
+def oscillation(t: np.ndarray, dx: np.ndarray, vy: np.ndarray, d: float,
+                window: tuple[float, float] = (0.65, 1.04)) -> dict:
+    """Period, amplitude and Strouhal number of the lateral oscillation in ``window``.
+
+    From the :func:`extrema` of the lateral offset ``dx(t)`` within ``window`` (s):
+    ``period`` the mean of the mean time between successive maxima and that between
+    successive minima, ``periods`` the shortest and longest of those times,
+    ``amplitude`` half the mean maximum minus the mean minimum (half the peak-to-peak),
+    ``mean`` the mean of those two (the offset the disk oscillates about), ``U`` the
+    mean fall speed ``|vy|`` and ``strouhal = d / (period U)`` (``d`` the diameter)."""
+    t, dx, vy = (np.asarray(a, dtype=float) for a in (t, dx, vy))
+    w = (t >= window[0]) & (t <= window[1])
+    te, ye = extrema(t[w], dx[w])
+    hi = ye > np.mean(ye)
+    if hi.sum() < 2 or (~hi).sum() < 2:
+        raise ValueError(f"window = {window}: {hi.sum()} maxima and {(~hi).sum()} minima of "
+                         "the offset, at least 2 of each needed for a period")
+    full = np.concatenate([np.diff(te[hi]), np.diff(te[~hi])])
+    period = 0.5 * (np.diff(te[hi]).mean() + np.diff(te[~hi]).mean())
+    U = float(np.abs(vy[w]).mean())
+    return {"period": float(period), "periods": [float(full.min()), float(full.max())],
+            "amplitude": float(0.5 * (ye[hi].mean() - ye[~hi].mean())),
+            "mean": float(0.5 * (ye[hi].mean() + ye[~hi].mean())),
+            "extrema": int(te.size), "U": U, "strouhal": float(d / (period * U))}
+
+
+def analyse(tags: list[str], window: tuple[float, float] = (0.65, 1.04)) -> None:
+    """Print the :func:`oscillation` of stored runs ``wake_meshes_<tag>.json``, one line each."""
+    for tag in tags:
+        r = json.loads((ROOT / f"benchmarks/results/wake_meshes_{tag}.json").read_text())
+        h = r["history"]
+        o = oscillation(h["t"], h["dx"], h["vy"], 2.5e-3, window)
+        dofs = r.get("dofs") or [None]
+        print(f"{tag}: vertices {r['vertices'][0]} / {max(r['vertices'])}, DOFs {dofs[0]} / "
+              f"{max(dofs, key=lambda n: n or 0)}, smallest angle {min(r['min_angles']):.1f}, "
+              f"period {o['period']:.4f} s ({o['periods'][0]:.4f}-{o['periods'][1]:.4f}), "
+              f"amplitude {o['amplitude'] * 1e6:.0f} um, mean {o['mean'] * 1e6:+.0f} um, "
+              f"{o['extrema']} extrema, St {o['strouhal']:.3f} (U = {o['U'] * 100:.2f} cm/s), "
+              f"CPU {r.get('cpu_s') or float('nan'):.0f} s, wall {r['wall_s']:.0f} s")
 
 
 def main():
@@ -63,9 +139,21 @@ def main():
                     help="channel height (m); released 2 cm below the top")
     ap.add_argument("--no-wake", action="store_true",
                     help="keep the default graded mesh's circles at every Reynolds number")
+    ap.add_argument("--delta-l", type=float, default=None,
+                    help="outline edge length (m); default: the 64-gon's edges, 0.123 mm")
+    ap.add_argument("--wake-sigma", type=float, default=None,
+                    help="growth factor of the default graded mesh's circles above Re 40 "
+                         "(default 1.05, WAKE_SIGMA)")
     ap.add_argument("--tag", default=None)
+    ap.add_argument("--analyse", nargs="+", metavar="TAG", default=None,
+                    help="print the oscillation in 0.65-1.04 s of stored runs and stop")
     a = ap.parse_args()
-    sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma, a.height, wake=not a.no_wake))
+    if a.analyse:
+        return analyse(a.analyse)
+    sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma, a.height, wake=not a.no_wake,
+                           delta_l=a.delta_l))
+    if a.wake_sigma is not None:
+        sim.stepper.wake_grading = WakeGrading(sigma=a.wake_sigma)
     if a.mesh == "flow":
         sim.stepper.flow_sizing = FlowSizing(eps=a.eps, budget=a.budget)
     sizes = []
@@ -76,7 +164,12 @@ def main():
             if not sizes or sizes[-1][1] != sim.mesh.p.shape[1]:
                 sizes.append((float(sim.stepper.state.t), int(sim.mesh.p.shape[1]),
                               float(meshing.mesh_stats(sim.mesh).min_angle),
-                              sim.stepper.meshed.recipe.options.get("sigma")))
+                              sim.stepper.meshed.recipe.options.get("sigma"),
+                              int(sim.stepper.space.N),
+                              getattr(sim.stepper.coupling.solver, "name", None)))
+            if len(sim.history.t) % 200 == 0:                 # progress, every 50 ms
+                print(f"t = {sim.stepper.state.t:.3f} s, {time.process_time() - c0:.0f} CPU s, "
+                      f"{sim.mesh.p.shape[1]} vertices", flush=True)
     except Exception as exc:  # a run that stops still reports what it measured
         failed = str(exc)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -87,7 +180,7 @@ def main():
            "height": a.height,
            "eps": a.eps if a.mesh == "flow" else None,
            "budget": a.budget if a.mesh == "flow" else None, "t_end": float(t[-1]),
-           "wake": not a.no_wake,
+           "wake": not a.no_wake, "delta_l": a.delta_l, "wake_sigma": a.wake_sigma,
            "failed": failed, "steps": len(t), "remeshes": sim.remeshes, "wall_s": wall,
            "cpu_s": cpu,
            "re_max": float(1000.0 * np.abs(vy).max() * 2.5e-3 / 1e-3),
@@ -95,6 +188,7 @@ def main():
            "t_lateral_max": float(t[int(np.argmax(np.abs(dx)))]),
            "vertices": [s[1] for s in sizes], "min_angles": [s[2] for s in sizes],
            "mesh_times": [s[0] for s in sizes], "mesh_sigmas": [s[3] for s in sizes],
+           "dofs": [s[4] for s in sizes], "solvers": sorted({str(s[5]) for s in sizes}),
            "history": {"t": t[::4].tolist(), "dx": dx[::4].tolist(), "vy": vy[::4].tolist()},
            "machine": platform.platform(),
            "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
