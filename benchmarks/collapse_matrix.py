@@ -154,6 +154,30 @@ def summarise(runs: list) -> list:
     return out
 
 
+def earlier_runs(out: Path) -> list:
+    """The runs already in the results file (kept when their output folders are gone)."""
+    return json.loads(out.read_text())["runs"] if out.exists() else []
+
+
+def record(out: Path, rec: dict) -> None:
+    """Put ``rec`` into the results file in place of an earlier record of the same run.
+
+    The file is read, updated and written under an exclusive lock, so that several
+    processes working through different runs of one matrix (``--states dense`` in one,
+    ``--states loose`` in another) keep each other's records.
+    """
+    import fcntl
+
+    lock_path = ROOT / "out" / f"{out.stem}.lock"
+    lock_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(lock_path, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        runs = [r for r in earlier_runs(out) if r["run"] != rec["run"]] + [rec]
+        out.write_text(json.dumps({"benchmark": "collapse_matrix", "aspect": ASPECT,
+                                   "cpus": os.cpu_count(), "runs": runs,
+                                   "summary": summarise(runs)}, indent=1) + "\n")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=200)
@@ -171,18 +195,14 @@ def main(argv=None):
     tag = a.tag or ("smoke" if a.smoke else f"n{a.n}")
     root = ROOT / "out" / f"collapse_matrix_{tag}"
     out = RESULTS / f"collapse_matrix_{tag}.json"
-    runs = []
     for seed in a.seeds:
         for state in a.states:
             for medium in a.media:
                 for core in (a.cores if medium == "immersed" else [1.0]):
-                    runs.append(one(a.n, state, medium, core, seed, a.tau, root,
-                                    a.checkpoint_every))
-                    print(json.dumps({k: v for k, v in runs[-1].items() if k != "series"}),
+                    rec = one(a.n, state, medium, core, seed, a.tau, root, a.checkpoint_every)
+                    print(json.dumps({k: v for k, v in rec.items() if k != "series"}),
                           flush=True)
-                    out.write_text(json.dumps({"benchmark": "collapse_matrix", "aspect": ASPECT,
-                                               "cpus": os.cpu_count(), "runs": runs,
-                                               "summary": summarise(runs)}, indent=1) + "\n")
+                    record(out, rec)
     print(f"wrote {out}")
 
 
