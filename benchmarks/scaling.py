@@ -257,6 +257,8 @@ def record(n, sim, wall, steady, steady_ms, marks, initial, steps, warmup) -> di
         "steady_factorizations": end.get("factorizations", 0) - mark.get("factorizations", 0),
         "steady_jacobian_refreshes": (end.get("jacobian_refreshes", 0)
                                       - mark.get("jacobian_refreshes", 0)),
+        "iterations": int(np.sum(h.iterations)),
+        "steady_iterations": int(np.sum(h.iterations[warmup:])),
         "status": s["status"], "warnings": s["warnings"],
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         "per_step": steps,

@@ -62,9 +62,31 @@ def packing(n: int, seed: int = 0):
     return pk
 
 
-def child(n: int, steps: int) -> dict:
-    """One collapse window in this process: the record of :func:`scaling.simulate`."""
+def set_stall_rule(rule: str | None) -> None:
+    """``"rate:R"`` or ``"amortised:N"``: the chord iteration's stall rule
+    (:class:`skfem_granular.fluid.newton.ChordStall`) in place of the library's default."""
+    from skfem_granular.fluid import newton
+
+    if rule is None:
+        return
+    kind, _, value = rule.partition(":")
+    newton.STALL_RULE = kind
+    if kind == "rate":
+        newton.STALL_RATE = float(value)
+    elif kind == "amortised":
+        newton.REFRESH_ITERATIONS = float(value)
+    else:
+        raise SystemExit(f"--stall-rule: 'rate:R' or 'amortised:N', not {rule!r}")
+
+
+def child(n: int, steps: int, stall_rule: str | None = None) -> dict:
+    """One collapse window in this process: the record of :func:`scaling.simulate`.
+
+    ``stall_rule``: see :func:`set_stall_rule` (a comparison of the rules).
+    """
     from skfem_granular.collapse import column_scene
+
+    set_stall_rule(stall_rule)
 
     pk = packing(n)
     scene = column_scene(pk, fluid=True, core_ratio=CORE_RATIO, t_end=steps * DT, dt=DT,
@@ -74,12 +96,20 @@ def child(n: int, steps: int) -> dict:
     rec["contact_step_fraction"] = sum(1 for k in c if k > 0) / max(len(c), 1)
     rec["solid_fraction"] = pk.solid_fraction
     rec["packing"] = {"n": pk.n, "aspect": pk.aspect, "state": pk.state}
+    rec["stall_rule"] = stall_rule or "library"
+    # the cost of a refresh in chord iterations, as measured in this window
+    it, ref = rec["steady_iterations"], rec["steady_jacobian_refreshes"]
+    ph = rec["steady_phases_s"]
+    if it and ref:
+        rec["refresh_over_iteration"] = (ph["refresh"] / ref) / (ph["solve_exclusive"] / it)
     return rec
 
 
-def run_child(n: int, steps: int) -> dict:
+def run_child(n: int, steps: int, stall_rule: str | None = None) -> dict:
     """:func:`child` in a fresh interpreter, with the load average around it."""
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child", str(n), str(steps)]
+    if stall_rule is not None:
+        cmd += ["--stall-rule", stall_rule]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         p for p in (str(ROOT), str(ROOT / "benchmarks"), os.environ.get("PYTHONPATH")) if p)}
     load0 = list(os.getloadavg())
@@ -125,10 +155,13 @@ def main(argv=None) -> dict | None:
     ap.add_argument("--out", type=Path, default=RESULTS / "scaling_contact.json")
     ap.add_argument("--append", action="store_true",
                     help="keep the runs of --out of other grain counts (one fit over all)")
+    ap.add_argument("--stall-rule", default=None,
+                    help="'rate:R' or 'amortised:N': the chord iteration's stall rule in place "
+                         "of the library's (a comparison)")
     ap.add_argument("--child", nargs=2, metavar=("N", "STEPS"), help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
-        print(json.dumps(child(int(a.child[0]), int(a.child[1]))))
+        print(json.dumps(child(int(a.child[0]), int(a.child[1]), a.stall_rule)))
         return None
     data = {"benchmark": "scaling_contact", "commit": commit_id(), "cpus": os.cpu_count(),
             "aspect": ASPECT, "core_ratio": CORE_RATIO, "dt": DT, "warmup_steps": WARMUP,
@@ -136,7 +169,7 @@ def main(argv=None) -> dict | None:
     if a.append and a.out.exists():
         data["runs"] = [r for r in json.loads(a.out.read_text())["runs"] if r["grains"] not in a.n]
     for n in a.n:
-        data["runs"].append(run_child(n, a.steps))
+        data["runs"].append(run_child(n, a.steps, a.stall_rule))
         data["runs"].sort(key=lambda r: r["grains"])
         data["fits"] = fits(data["runs"])
         a.out.parent.mkdir(parents=True, exist_ok=True)

@@ -82,6 +82,7 @@ CASES = {
     "cyl_fine": lambda: fluid_case(192, 1.06, dt=0.01, t_end=1.0),
     "single_particle": lambda: coupled_case("single_particle"),
     "collapse": lambda: coupled_case("collapse", 0.04),
+    "collapse_full": lambda: coupled_case("collapse"),
 }
 
 
@@ -89,8 +90,14 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", default="cyl,cyl_fixed,single_particle,collapse")
     ap.add_argument("--tag", default="")
+    ap.add_argument("--stall-rule", default=None,
+                    help="'rate:R' or 'amortised:N' in place of the library's rule")
     args = ap.parse_args()
+    from scaling_contact import set_stall_rule
+
+    set_stall_rule(args.stall_rule)
     out = {"package": sg.__file__, "machine": platform.machine(),
+           "stall_rule": args.stall_rule or "library",
            "load_before": os.getloadavg()[0], "cases": {}}
     for name in args.cases.split(","):
         out["cases"][name] = r = CASES[name]()

@@ -383,7 +383,7 @@ class MonolithicCoupling(RigidParticles):
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
         solve = self.solver.solve_correction if not self.op.linear else self.solver.solve
-        stall = ChordStall(self.max_iterations)
+        stall = ChordStall(self.max_iterations, self.factors)
         refresh_time = [0.0]  # seconds of the refreshes (booked as assembly, factorisation)
 
         def stop(it, dz, z):

@@ -47,6 +47,8 @@ class FactorCache:
         self.A_uu: sp.csr_matrix | None = None
         self.factorizations = 0  # of the linear operator (a0 changed, or cleared)
         self.refreshes = 0  # factorisations of another system (factorize_system)
+        #: chord iterations spent on the held factorisation beyond a fresh one's (ChordStall)
+        self.extra_iterations = 0
 
     def operator(self, a0: float) -> sp.csr_matrix:
         """Factorise for ``a0`` unless that is the factorisation held; returns ``A_uu``."""
@@ -60,6 +62,7 @@ class FactorCache:
             self.A_uu = A_uu
             self.a0 = a0
             self.factorizations += 1
+            self.extra_iterations = 0
         return self.A_uu
 
     def factorize_system(self, a0: float, system: tuple) -> sp.csr_matrix:
@@ -72,6 +75,7 @@ class FactorCache:
         self.solver.factorize(J, nu, **blocks)
         self.timings["factorization"] += time.perf_counter() - t0
         self.refreshes += 1
+        self.extra_iterations = 0
         self.A_uu, self.a0 = A_uu, a0
         return A_uu
 

@@ -80,6 +80,18 @@ def chord_converged(dn: float, prev: float, it: int, tol: float) -> bool:
 #: docs/benchmarks.md, "One stall policy".
 STALL_RATE = 0.3
 
+#: ``"rate"``: a refresh whenever an update is more than :data:`STALL_RATE` of the one
+#: before; ``"amortised"``: a refresh when the iterations the held factorisation has cost
+#: beyond a fresh one's add up to :data:`REFRESH_ITERATIONS` (:class:`ChordStall`).
+STALL_RULE = "rate"
+
+#: Iterations a step takes on a fresh Newton Jacobian (the rest are the held operator's
+#: price).
+FRESH_ITERATIONS = 3
+
+#: What a refresh costs, in chord iterations (a residual and a back-substitution each).
+REFRESH_ITERATIONS = 30.0
+
 
 class ChordStall:
     """When a chord iteration has stalled, and when to refresh its operator.
@@ -118,24 +130,35 @@ class ChordStall:
         Refreshes asked for in this step.
     """
 
-    def __init__(self, max_iterations: int) -> None:
+    def __init__(self, max_iterations: int, ledger=None) -> None:
         self.rate = STALL_RATE
         self.max_iterations = int(max_iterations)
         self.prev: float | None = None
         self.refreshes = 0
-        self._due = False
+        self.ledger = ledger if STALL_RULE == "amortised" else None
+        self._due = self.ledger is not None and self.ledger.extra_iterations >= REFRESH_ITERATIONS
         self._since = 0  # iteration of the last refresh (0: the operator the step began with)
+
+    def _extra(self, it: int) -> int:
+        """Iterations of this step on the held operator beyond a fresh one's."""
+        return max(0, it - self._since - FRESH_ITERATIONS)
 
     def observe(self, it: int, dn: float, done: bool, tol: float) -> None:
         """Record update ``it`` of size ``dn`` (``done``: the iteration stops here; ``tol``:
         the size of update it stops at)."""
         prev, self.prev = self.prev, dn
+        if done and self.ledger is not None:
+            self.ledger.extra_iterations += self._extra(it)
         if done or prev is None or it < self._since + 2 or prev <= 0.0:
             return
         rate = dn / prev
+        if self.ledger is not None:
+            slow = rate >= 1.0 or self.ledger.extra_iterations + self._extra(it) >= REFRESH_ITERATIONS
+        else:
+            slow = rate > self.rate
         # too slow, or (iterations still needed at this rate) too many for the limit
-        if rate > self.rate or (dn > tol and rate > 0.0 and math.log(tol / dn) / math.log(rate)
-                                > self.max_iterations - it):
+        if slow or (dn > tol and rate > 0.0 and math.log(tol / dn) / math.log(rate)
+                    > self.max_iterations - it):
             self._due = True
 
     def refresh_due(self, it: int) -> bool:

@@ -241,7 +241,7 @@ class BDF2Integrator:
         solve = self.solver.solve_correction if not op.linear else self.solver.solve
         it_state = {"scale": max(float(np.abs(u_n).max()), self.velocity_scale),
                     "dnorm": math.nan}
-        stall = ChordStall(self.max_iterations)
+        stall = ChordStall(self.max_iterations, self.factors)
 
         def residual(x):
             t0 = time.perf_counter()
