@@ -8,7 +8,12 @@ Usage: ``python benchmarks/collapse_figures.py --dry results/collapse_dry_*.json
   over the seeds) with the published dry laws;
 - ``collapse_pressure_lines.png`` (with ``--flow-dir``): excess pore pressure along the
   base and 10 d_mean above it in the saved flow frames of an immersed run, over
-  ``(rho_p - rho_f) g H0``.
+  ``(rho_p - rho_f) g H0``;
+- ``collapse_matrix_runout.png`` (with ``--matrix results/collapse_matrix_n200.json``): the
+  run-out curves of the loose/dense, dry/immersed runs;
+- ``collapse_matrix_pressure.png`` (with ``--matrix`` and ``--matrix-dir
+  out/collapse_matrix_n200``): excess pore pressure along the base under the loose and
+  the dense immersed columns in their first saved frames after the release.
 """
 
 from __future__ import annotations
@@ -69,18 +74,54 @@ def pressure_figure(flow_dir, packing_path, out):
                         ylabel=r"$(p - p_{ref}) / ((\rho_p - \rho_f) g H_0)$", styles=styles)
 
 
+def matrix_figures(path, out, runs_dir=None):
+    runs = json.loads(Path(path).read_text())["runs"]
+    curves = {f"{r['state']}, {r['medium']}"
+              + (f" (core {r['core_ratio']:g})" if r["medium"] == "immersed" else "")
+              + f", seed {r['seed']}": (r["series"]["t_over_tau"], r["series"]["runout"])
+              for r in sorted(runs, key=lambda r: r["run"])}
+    plot_runout_curves(curves, out / "collapse_matrix_runout.png")
+    if runs_dir is None:
+        return
+    lines, styles = {}, {}
+    for k, r in enumerate(r for r in sorted(runs, key=lambda r: r["run"])
+                          if r["medium"] == "immersed"):
+        folder = Path(runs_dir) / r["run"]
+        packing = load_packing(ROOT / "benchmarks/results/packings"
+                               / f"{r['state']}_a0.8_n{r['grains']}_seed{r['seed']}.npz")
+        frames = read_pvd(folder / "flow.pvd")
+        X = meshio.read(frames[0][1]).points
+        box = (X[:, 0].min(), X[:, 1].min(), X[:, 0].max(), X[:, 1].max())
+        ref = reference_point(box, packing.d_max)
+        scale = (packing.density - 1000.0) * 9.81 * packing.height
+        P = line_points(0.5 * packing.d_max, box[2] - 0.5 * packing.d_max,
+                        0.02 * packing.d_mean)
+        for j, (t, f) in enumerate(frames[1:3]):
+            label = f"{r['state']} (core {r['core_ratio']:g}), t = {t / r['tau_c']:.2f} tau_c"
+            lines[label] = excess_pressure(f, P, ref) / scale
+            styles[label] = f"C{k}{'-' if j == 0 else '--'}"
+    plot_pressure_lines(P[0], lines, out / "collapse_matrix_pressure.png", scale=packing.width,
+                        ylabel=r"base: $(p - p_{ref}) / ((\rho_p - \rho_f) g H_0)$",
+                        styles=styles)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dry", nargs="*", default=[])
     ap.add_argument("--flow-dir")
     ap.add_argument("--packing")
+    ap.add_argument("--matrix", help="results/collapse_matrix_<tag>.json")
+    ap.add_argument("--matrix-dir", help="the matrix runs' folders (for the pressure)")
     ap.add_argument("--out", default=str(ROOT / "docs" / "figures"))
     a = ap.parse_args(argv)
     out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
     if a.dry:
         dry_figures(a.dry, out)
     if a.flow_dir:
         pressure_figure(a.flow_dir, a.packing, out)
+    if a.matrix:
+        matrix_figures(a.matrix, out, a.matrix_dir)
 
 
 if __name__ == "__main__":
