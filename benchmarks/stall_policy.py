@@ -30,6 +30,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import meshing
+import numpy as np
 import skfem_granular as sg
 from skfem_granular.scene import Scene
 from skfem_granular.simulation import Simulation
@@ -61,9 +62,14 @@ def fluid_case(n: int, sigma: float, **steps) -> dict:
             "linear_solves": flow.report.solver["solves"], "drag": float(F[0])}
 
 
-def coupled_case(name: str, t_end: float | None = None) -> dict:
-    """A bundled scene, no output written."""
-    sc = Scene.bundled(name)
+def coupled_case(name: str, t_end: float | None = None, seed: int | None = None) -> dict:
+    """A bundled scene, no output written (``seed``: the collapse's grid seeded so)."""
+    if seed is not None and name == "collapse":
+        from gap_lining import seeded_collapse
+
+        sc = seeded_collapse(seed)
+    else:
+        sc = Scene.bundled(name)
     if t_end is not None:
         sc = replace(sc, time=replace(sc.time, t_end=t_end))
     c0 = time.process_time()
@@ -71,10 +77,17 @@ def coupled_case(name: str, t_end: float | None = None) -> dict:
     h = sim.run(progress=False).history
     cpu = time.process_time() - c0
     st = sim.stepper
+    marks = [t for t in (0.05, 0.1, 0.16) if t <= h.t[-1] + 1e-12]
+    rows = [int(np.argmin(np.abs(h.t - t))) for t in marks]
     return {"cpu_s": cpu, "steps": len(h), "iterations": int(h.iterations.sum()),
             **st.factor_counts, "remeshes": st.remeshes, "final_t": repr(float(h.t[-1])),
-            "vy_end": float(h.vy[-1, 0]), "y_end": float(h.y[-1, 0])}
+            "vy_end": float(h.vy[-1, 0]), "y_end": float(h.y[-1, 0]),
+            "mean_height": {f"{t:g}": float(h.y[k].mean()) for t, k in zip(marks, rows)},
+            "height_spread": {f"{t:g}": float(h.y[k].std()) for t, k in zip(marks, rows)}}
 
+
+#: The collapse's grid seed (``--seed``; None: the bundled scene's own, 1).
+SEED: list = [None]
 
 CASES = {
     "cyl": lambda: fluid_case(48, 1.15, dt=1e-3, t_end=1.5, adaptive=True, tol=1e-3),
@@ -82,7 +95,7 @@ CASES = {
     "cyl_fine": lambda: fluid_case(192, 1.06, dt=0.01, t_end=1.0),
     "single_particle": lambda: coupled_case("single_particle"),
     "collapse": lambda: coupled_case("collapse", 0.04),
-    "collapse_full": lambda: coupled_case("collapse"),
+    "collapse_full": lambda: coupled_case("collapse", seed=SEED[0]),
 }
 
 
@@ -90,14 +103,16 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", default="cyl,cyl_fixed,single_particle,collapse")
     ap.add_argument("--tag", default="")
+    ap.add_argument("--seed", type=int, default=None, help="the collapse grid's seed")
     ap.add_argument("--stall-rule", default=None,
                     help="'rate:R' or 'amortised:N' in place of the library's rule")
     args = ap.parse_args()
     from scaling_contact import set_stall_rule
 
     set_stall_rule(args.stall_rule)
+    SEED[0] = args.seed
     out = {"package": sg.__file__, "machine": platform.machine(),
-           "stall_rule": args.stall_rule or "library",
+           "stall_rule": args.stall_rule or "library", "seed": args.seed,
            "load_before": os.getloadavg()[0], "cases": {}}
     for name in args.cases.split(","):
         out["cases"][name] = r = CASES[name]()

@@ -298,10 +298,13 @@ def test_moving_mesh_checkpoint_at_any_step_resumes_bit_for_bit(tmp_path):
         assert np.array_equal(getattr(ref, c), getattr(res, c)), c
 
 
-def test_checkpoint_holding_a_newton_jacobian_resumes_bit_for_bit(tmp_path, monkeypatch):
+@pytest.mark.parametrize("rule", ["rate", "amortised"])
+def test_checkpoint_holding_a_newton_jacobian_resumes_bit_for_bit(tmp_path, monkeypatch, rule):
     """The corrector refreshes to a Newton Jacobian when the chord stalls (forced here: at
-    least three iterations, a refresh after the second); a checkpoint taken while one is held
-    records the state it was formed at, and the resumed run rebuilds the same one."""
+    least three iterations, and a refresh after the second, or whenever two steps have
+    taken two iterations each beyond one); a checkpoint taken while one is held records the
+    state it was formed at and what it has cost so far (the amortised rule's ledger), and the
+    resumed run rebuilds the same one and refreshes where the uninterrupted run did."""
     from contextlib import closing
 
     import skfem_granular.coupled.monolithic as monolithic
@@ -309,7 +312,10 @@ def test_checkpoint_holding_a_newton_jacobian_resumes_bit_for_bit(tmp_path, monk
     from skfem_granular.simulation import checkpoint
 
     converged = monolithic.chord_converged
+    monkeypatch.setattr(newton, "STALL_RULE", rule)
     monkeypatch.setattr(newton, "STALL_RATE", 0.0)
+    monkeypatch.setattr(newton, "FRESH_ITERATIONS", 1)
+    monkeypatch.setattr(newton, "REFRESH_ITERATIONS", 4.0)
     monkeypatch.setattr(monolithic, "chord_converged",
                         lambda dn, prev, it, tol: it >= 3 and converged(dn, prev, it, tol))
     base = Scene.from_toml(SCENES / "single_particle.toml")
@@ -321,6 +327,8 @@ def test_checkpoint_holding_a_newton_jacobian_resumes_bit_for_bit(tmp_path, monk
         for k, _ in enumerate(steps, start=1):
             if k == 13:
                 assert sim.stepper.coupling.factorized_on[2] is not None  # a Jacobian held
+                if rule == "amortised":  # and part of its price paid
+                    assert sim.stepper.coupling.factors.extra_iterations > 0
                 checkpoint.save(sim, k, None)
                 break
     res = Simulation.resume(tmp_path / "part").run(progress=False)

@@ -606,6 +606,7 @@ class CoupledStepper:
                 "counters": {"remeshes": self.remeshes, "retries": self.retries,
                              "rejections": self.rejections, "euler_steps": self.euler_steps,
                              **self.factor_counts,
+                             "chord_extra_iterations": self.coupling.factors.extra_iterations,
                              **{"remesh_reasons." + k: v
                                 for k, v in self.remesh_reasons.items()}}}
         self.dem.neighbours.invalidate()
@@ -643,6 +644,8 @@ class CoupledStepper:
                 st.coupling.factors.operator(data["factor_a0"])
             else:
                 st.coupling.factorize_jacobian(data["factor_x"], data["factor_a0"])
+        # what the writer's factorisation had cost beyond fresh ones (ChordStall's ledger)
+        st.coupling.factors.extra_iterations = data["counters"].get("chord_extra_iterations", 0)
         if st.ale and st.state.nodes_n is not None:  # the mesh where the last step left it
             st.coupling.move(st.reference_space.moved(st.state.nodes_n),
                              data["coupling_centers"], None)

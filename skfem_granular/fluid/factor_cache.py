@@ -82,3 +82,4 @@ class FactorCache:
     def clear(self) -> None:
         """Forget the factorisation: the next :meth:`operator` call factorises anew."""
         self.a0 = None
+        self.extra_iterations = 0

@@ -12,10 +12,11 @@ callers is only what they pass in:
   coupled fluid + rigid-body system, stopping on the update with an estimate
   of the error left from the contraction rate (:func:`chord_converged`).
 
-Both chord iterations share one stall policy (:class:`ChordStall`): when an
-update is more than :data:`STALL_RATE` of the one before, or the contraction
-would not reach the tolerance within the iteration limit, the Newton Jacobian
-at the iterate is factorised and the iteration goes on with it.
+Both chord iterations share one stall policy (:class:`ChordStall`): when the
+iterations a held factorisation has cost beyond a fresh Jacobian's add up to
+the price of a refresh, or the contraction would not reach the tolerance
+within the iteration limit, the Newton Jacobian at the iterate is factorised
+and the iteration goes on with it.
 """
 
 from __future__ import annotations
@@ -73,23 +74,28 @@ def chord_converged(dn: float, prev: float, it: int, tol: float) -> bool:
     return dn <= tol or (rate < 0.5 and dn * rate / (1.0 - rate) <= tol)
 
 
-#: A chord iteration has stalled when an update is more than this fraction of the one
-#: before (:class:`ChordStall`; or when it would need more iterations than are left).
-#: Measured against the rule "more than three further iterations at the current
-#: contraction rate" and against GMRES on the exact Jacobian in place of a refresh:
-#: docs/benchmarks.md, "One stall policy".
+#: The rate rule (``STALL_RULE = "rate"``): a chord iteration has stalled when an update
+#: is more than this fraction of the one before. Measured against the rule "more than
+#: three further iterations at the current contraction rate" and against GMRES on the
+#: exact Jacobian in place of a refresh: docs/benchmarks.md, "One stall policy".
 STALL_RATE = 0.3
 
-#: ``"rate"``: a refresh whenever an update is more than :data:`STALL_RATE` of the one
-#: before; ``"amortised"``: a refresh when the iterations the held factorisation has cost
-#: beyond a fresh one's add up to :data:`REFRESH_ITERATIONS` (:class:`ChordStall`).
-STALL_RULE = "rate"
+#: ``"amortised"`` (default): a refresh when the iterations the held factorisation has
+#: cost beyond a fresh Jacobian's, summed over the steps that used it, reach
+#: :data:`REFRESH_ITERATIONS`; ``"rate"``: a refresh whenever an update is more than
+#: :data:`STALL_RATE` of the one before (the rule up to this version, kept for
+#: comparisons). Either refreshes when the iteration would not reach its tolerance within
+#: the iteration limit, or does not contract.
+STALL_RULE = "amortised"
 
-#: Iterations a step takes on a fresh Newton Jacobian (the rest are the held operator's
-#: price).
+#: Iterations a step takes on a fresh Newton Jacobian (two updates and the one that
+#: confirms): the ones beyond are what the held operator costs.
 FRESH_ITERATIONS = 3
 
-#: What a refresh costs, in chord iterations (a residual and a back-substitution each).
+#: What a refresh (assembling and factorising the Newton Jacobian) costs in chord
+#: iterations (a residual and a back-substitution each): measured 27-41 on the immersed
+#: collapse columns of 25 to 400 grains (42k to 600k unknowns, SuperLU), almost
+#: independent of the size (docs/benchmarks.md, "One stall policy").
 REFRESH_ITERATIONS = 30.0
 
 
@@ -98,27 +104,41 @@ class ChordStall:
 
     The one rule of every chord iteration of the package, the fluid's
     :class:`~skfem_granular.fluid.unsteady.BDF2Integrator` and the
-    :class:`~skfem_granular.coupled.monolithic.MonolithicCoupling`: when an update
-    is more than :data:`STALL_RATE` times the one before, or when at that rate the
-    updates would not come down to the tolerance within the iterations left, the
-    operator (the BDF2-Stokes matrix, or an older Jacobian) is too far from this
-    step's; the caller factorises the Newton Jacobian at the iterate before the
-    next correction and goes on with it
-    (:meth:`~skfem_granular.fluid.factor_cache.FactorCache.factorize_system`),
-    and later steps with the same ``a0`` keep it as their chord operator. The
-    rate is judged on two updates made with the same operator: from the second
-    iteration after a refresh on.
+    :class:`~skfem_granular.coupled.monolithic.MonolithicCoupling`. A chord
+    iteration runs on a held factorisation (the BDF2-Stokes matrix, or an earlier
+    Newton Jacobian) that drifts from the step's Jacobian as the flow and the mesh
+    move; each step it is kept costs iterations that a fresh Jacobian would not
+    take. The default rule (:data:`STALL_RULE` ``"amortised"``) pays for a refresh
+    when those extra iterations, counted on the ``ledger`` of the factorisation
+    (:class:`~skfem_granular.fluid.factor_cache.FactorCache`:
+    ``extra_iterations``, the iterations of each step beyond
+    :data:`FRESH_ITERATIONS`, summed over the steps since it was made), reach the
+    price of a refresh, :data:`REFRESH_ITERATIONS`: the rent-or-buy rule, never
+    more than twice the cost of the best choice made in hindsight. A refresh is
+    also due when at the current contraction rate the updates would not come down
+    to the tolerance within the iterations left, or do not contract. The caller
+    then factorises the Newton Jacobian at the iterate before the next correction
+    and goes on with it
+    (:meth:`~skfem_granular.fluid.factor_cache.FactorCache.factorize_system`), and
+    later steps with the same ``a0`` keep it as their chord operator. The rate is
+    judged on two updates made with the same operator: from the second iteration
+    after a refresh on.
 
     Parameters
     ----------
     max_iterations : int
         The iteration limit of the step.
+    ledger : FactorCache, optional
+        Where the extra iterations of the held factorisation are counted (its
+        ``extra_iterations``, reset by every factorisation); without it (or with
+        :data:`STALL_RULE` ``"rate"``) a refresh is due whenever an update is more
+        than :data:`STALL_RATE` of the one before.
 
     Examples
     --------
     One object per step:
 
-    >>> stall = ChordStall(max_iterations=12)  # doctest: +SKIP
+    >>> stall = ChordStall(max_iterations=12, ledger=factors)  # doctest: +SKIP
     >>> stall.observe(it, dn, done, tol)       # after each update
     >>> if stall.refresh_due(it): ...          # before each correction: factorise
 
