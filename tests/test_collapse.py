@@ -160,7 +160,7 @@ def test_dry_release_energy_and_front_bounds(tmp_path):
 def test_immersed_release_pressure_and_energy(tmp_path):
     p = column_packing("dense")
     tank = (3.0 * p.width, 13.0 * p.d_max)
-    scene = column_scene(p, fluid=True, tank=tank, t_end=2e-3, delta_l=0.25 * p.d_mean,
+    scene = column_scene(p, fluid=True, tank=tank, t_end=20e-3, delta_l=0.25 * p.d_mean,
                          output_dir=str(tmp_path), vtu_every=5)
     sim = Simulation(scene)
     E0 = _elastic_energy(sim)
