@@ -17,7 +17,8 @@ tank's top right corner) along the base (0.02 d_mean above the floor) and 10 d_m
 above it, averaged over the column's foot (from ``d_max / 2`` to ``L0 - d_max / 2``;
 points inside grain cores are left out), over ``(rho_p - rho_f) g H0``. Per state and
 core ratio: the mean and spread over the seeds at every sampled time
-(:func:`skfem_granular.collapse.realisations`). Results:
+(:func:`skfem_granular.collapse.realisations`), and of each seed's mean over the
+window (the pressure oscillates with the contacts, over about 0.1 ``tau_c``). Results:
 ``benchmarks/results/collapse_start_pressure_<tag>.json``.
 """
 
@@ -84,10 +85,20 @@ def summarise(runs: list) -> list:
         rs = [r for r in runs if (r["state"], r["core_ratio"]) == key]
         m = min(len(r["t_over_tau"]) for r in rs)
         out.append({"state": key[0], "core_ratio": key[1], "seeds": [r["seed"] for r in rs],
+                    # the window's mean (after release) per seed, then over the seeds
+                    **{f"{k}_window_mean": realisations([np.mean(r[k][1:]) for r in rs])
+                       for k in ("base", "10d")},
                     "t_over_tau": rs[0]["t_over_tau"][:m],
                     **{k: [realisations([r[k][i] for r in rs]) for i in range(m)]
                        for k in ("base", "10d")}})
     return out
+
+
+def rewrite_summary(out: Path) -> None:
+    """Recompute the summary of a results file from its runs."""
+    data = json.loads(out.read_text())
+    data["summary"] = summarise(data["runs"])
+    out.write_text(json.dumps(data, indent=1) + "\n")
 
 
 def main(argv=None):
