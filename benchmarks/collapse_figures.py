@@ -13,7 +13,8 @@ Usage: ``python benchmarks/collapse_figures.py --dry results/collapse_dry_*.json
   run-out curves of the loose/dense, dry/immersed runs;
 - ``collapse_matrix_pressure.png`` (with ``--matrix`` and ``--matrix-dir
   out/collapse_matrix_n200``): excess pore pressure along the base under the loose and
-  the dense immersed columns in their first saved frames after the release.
+  the dense immersed columns (the first seed) in their first saved frames after the
+  release.
 """
 
 from __future__ import annotations
@@ -84,8 +85,9 @@ def matrix_figures(path, out, runs_dir=None):
     if runs_dir is None:
         return
     lines, styles = {}, {}
+    first = min(r["seed"] for r in runs)  # one realisation per column: readable lines
     for k, r in enumerate(r for r in sorted(runs, key=lambda r: r["run"])
-                          if r["medium"] == "immersed"):
+                          if r["medium"] == "immersed" and r["seed"] == first):
         folder = Path(runs_dir) / r["run"]
         packing = load_packing(ROOT / "benchmarks/results/packings"
                                / f"{r['state']}_a0.8_n{r['grains']}_seed{r['seed']}.npz")
