@@ -1,7 +1,7 @@
 """A disk released just off the centreline at Re ~350: does the mesh let its wake shed?
 
 The set-up of ``benchmarks/settling_re350.py`` (2.5 mm 64-gon, rho_p / rho_f = 1.5,
-nu = 1e-6 m^2/s, closed 2 x 6 cm channel, steps of 0.25 ms), released ``--offset``
+nu = 1e-6 m^2/s, closed 2 x 6 cm channel, steps of 0.25 ms or ``--dt``), released ``--offset``
 (default 10 um) right of the centreline 2 cm below the top of a channel ``--height``
 high (default 6 cm: the original's (1, 4) cm), run to ``--t-end`` (default 0.32 s) on one
 mesh: ``--mesh graded`` (the default mesh, ``--sigma`` optional), ``field`` (graded
@@ -45,7 +45,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def scene(kind: str, offset: float, t_end: float, sigma: float | None,
-          height: float = 0.06, wake: bool = True, delta_l: float | None = None) -> Scene:
+          height: float = 0.06, wake: bool = True, delta_l: float | None = None,
+          dt: float = 2.5e-4) -> Scene:
     mesh = {"kind": "field" if kind in ("field", "flow") else "graded", "wake": wake}
     if sigma is not None:
         mesh["sigma"] = sigma
@@ -57,7 +58,7 @@ def scene(kind: str, offset: float, t_end: float, sigma: float | None,
         "particles": [{"sides": 64, "radius": 1.25e-3, "center": [0.01 + offset, height - 0.02],
                        "density": 1500.0}],
         "mesh": mesh, "effects": {"contacts": False},
-        "time": {"t_end": t_end, "dt": 2.5e-4}}, name="wake_meshes")
+        "time": {"t_end": t_end, "dt": dt}}, name="wake_meshes")
 
 
 def extrema(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -144,6 +145,7 @@ def main():
     ap.add_argument("--wake-sigma", type=float, default=None,
                     help="growth factor of the default graded mesh's circles above Re 40 "
                          "(default 1.05, WAKE_SIGMA)")
+    ap.add_argument("--dt", type=float, default=2.5e-4, help="time step (s)")
     ap.add_argument("--tag", default=None)
     ap.add_argument("--analyse", nargs="+", metavar="TAG", default=None,
                     help="print the oscillation in 0.65-1.04 s of stored runs and stop")
@@ -151,7 +153,7 @@ def main():
     if a.analyse:
         return analyse(a.analyse)
     sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma, a.height, wake=not a.no_wake,
-                           delta_l=a.delta_l))
+                           delta_l=a.delta_l, dt=a.dt))
     if a.wake_sigma is not None:
         sim.stepper.wake_grading = WakeGrading(sigma=a.wake_sigma)
     if a.mesh == "flow":
@@ -167,7 +169,7 @@ def main():
                               sim.stepper.meshed.recipe.options.get("sigma"),
                               int(sim.stepper.space.N),
                               getattr(sim.stepper.coupling.solver, "name", None)))
-            if len(sim.history.t) % 200 == 0:                 # progress, every 50 ms
+            if len(sim.history.t) % round(0.05 / a.dt) == 0:  # progress, every 50 ms
                 print(f"t = {sim.stepper.state.t:.3f} s, {time.process_time() - c0:.0f} CPU s, "
                       f"{sim.mesh.p.shape[1]} vertices", flush=True)
     except Exception as exc:  # a run that stops still reports what it measured
@@ -176,11 +178,12 @@ def main():
     h = sim.history
     t, x, vy = np.asarray(h.t), np.asarray(h.x[:, 0]), np.asarray(h.vy[:, 0])
     dx = x - (0.01 + a.offset)
+    every = max(1, round(1e-3 / a.dt))                       # the history every 1 ms
     out = {"benchmark": "wake_meshes", "mesh": a.mesh, "sigma": a.sigma, "offset": a.offset,
            "height": a.height,
            "eps": a.eps if a.mesh == "flow" else None,
            "budget": a.budget if a.mesh == "flow" else None, "t_end": float(t[-1]),
-           "wake": not a.no_wake, "delta_l": a.delta_l, "wake_sigma": a.wake_sigma,
+           "wake": not a.no_wake, "delta_l": a.delta_l, "wake_sigma": a.wake_sigma, "dt": a.dt,
            "failed": failed, "steps": len(t), "remeshes": sim.remeshes, "wall_s": wall,
            "cpu_s": cpu,
            "re_max": float(1000.0 * np.abs(vy).max() * 2.5e-3 / 1e-3),
@@ -189,7 +192,7 @@ def main():
            "vertices": [s[1] for s in sizes], "min_angles": [s[2] for s in sizes],
            "mesh_times": [s[0] for s in sizes], "mesh_sigmas": [s[3] for s in sizes],
            "dofs": [s[4] for s in sizes], "solvers": sorted({str(s[5]) for s in sizes}),
-           "history": {"t": t[::4].tolist(), "dx": dx[::4].tolist(), "vy": vy[::4].tolist()},
+           "history": {k: v[::every].tolist() for k, v in (("t", t), ("dx", dx), ("vy", vy))},
            "machine": platform.platform(),
            "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
                                     capture_output=True, text=True).stdout.strip()}
