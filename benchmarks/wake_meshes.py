@@ -16,7 +16,7 @@ Reynolds number, mesh sizes and the wall time.
 ``--delta-l`` and ``--wake-sigma`` refine the default graded mesh (outline edges, and
 the circles above Re 40). ``--analyse TAG ...`` prints the oscillation of stored runs
 (:func:`oscillation`: period, amplitude, mean offset and Strouhal number from the
-extrema of the lateral offset between 0.65 and 1.04 s) instead of running.
+extrema of the lateral offset in ``--window``, default 0.65-1.04 s) instead of running.
 
 Writes ``benchmarks/results/wake_meshes_<tag>.json``.
 
@@ -148,10 +148,12 @@ def main():
     ap.add_argument("--dt", type=float, default=2.5e-4, help="time step (s)")
     ap.add_argument("--tag", default=None)
     ap.add_argument("--analyse", nargs="+", metavar="TAG", default=None,
-                    help="print the oscillation in 0.65-1.04 s of stored runs and stop")
+                    help="print the oscillation of stored runs (in --window) and stop")
+    ap.add_argument("--window", type=float, nargs=2, default=(0.65, 1.04),
+                    metavar=("T0", "T1"), help="time window of --analyse (s)")
     a = ap.parse_args()
     if a.analyse:
-        return analyse(a.analyse)
+        return analyse(a.analyse, tuple(a.window))
     sim = Simulation(scene(a.mesh, a.offset, a.t_end, a.sigma, a.height, wake=not a.no_wake,
                            delta_l=a.delta_l, dt=a.dt))
     if a.wake_sigma is not None:

@@ -102,6 +102,10 @@ def _parser() -> argparse.ArgumentParser:
     ren.add_argument("--frame", type=int, default=-1, help="frame index for --png (default last)")
     ren.add_argument("--png", help="write one frame to this PNG")
     ren.add_argument("--animation", help="write all frames to this .gif (or .mp4)")
+    ren.add_argument("--every", type=int, default=1,
+                     help="--animation: every N-th frame (default 1)")
+    ren.add_argument("--fps", type=float, default=10.0,
+                     help="--animation: frames per second (default 10)")
     stu = sub.add_parser("study", help="accuracy against cost over a grid of discretisations")
     stu.add_argument("study", choices=["single-particle", "faxen"])
     stu.add_argument("--out", help="study directory (default: out/study_<study>[_smoke])")
@@ -376,7 +380,8 @@ def _render(args) -> int:
             viz.render_frame(f, p, args.png, field=args.field, vectors=args.vectors, time=t)
             print(f"wrote {args.png}")
         if args.animation:
-            viz.render_series(out, args.animation, field=args.field, vectors=args.vectors)
+            viz.render_series(out, args.animation, field=args.field, vectors=args.vectors,
+                              every=args.every, fps=args.fps)
             print(f"wrote {args.animation}")
     except (ValueError, ImportError) as exc:
         print(f"skfem-granular: error: {exc}", file=sys.stderr)

@@ -26,3 +26,26 @@ def test_render_bad_directory_exit_code(tmp_path, capsys):
     assert main(["render", str(tmp_path / "nothing"), "--png", "x.png"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no flow.pvd" in err[0]
+
+
+def test_render_animation_every_other_frame(tmp_path, capsys):
+    pytest.importorskip("pyvista", reason="pyvista is the 'plot' extra")
+    out = tmp_path / "run"
+    # 4 steps with a frame every step: frames at steps 0..4 (5), every 2nd -> 3
+    assert main(["run", str(SCENE), "--out", str(out), "--t-end", "4e-5", "--dt", "1e-5",
+                 "--vtu-every", "1", "--no-progress"]) == 0
+    from skfem_granular.io import read_pvd
+
+    n = len(read_pvd(out / "flow.pvd"))
+    gif = tmp_path / "run.gif"
+    assert main(["render", str(out), "--animation", str(gif), "--every", "2",
+                 "--fps", "4"]) == 0
+    from PIL import Image
+
+    with Image.open(gif) as im:
+        assert im.n_frames == (n + 1) // 2
+        assert im.info["duration"] == 250  # ms per frame at 4 fps
+    capsys.readouterr()
+    assert main(["render", str(out), "--animation", str(gif), "--every", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "every = 0" in err[0]
