@@ -111,7 +111,9 @@ def add_cost(folder: Path, cpu: float, wall: float, dofs: list) -> dict:
             "dofs_mean": c["dofs_sum"] / c["dofs_steps"] if c["dofs_sum"] else None}
 
 
-def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict:
+def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict | None:
+    """Run (or continue, or read back) one run of the matrix and measure it; None if it was
+    stopped before its end (a signal): its checkpoint is kept and nothing is recorded."""
     from skfem_granular.collapse import time_scale
 
     pk = packing(n, state, seed)
@@ -129,6 +131,10 @@ def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict:
             dofs.append(int(sim.space.N) if medium == "immersed" else 0)
     summary = json.loads((folder / "summary.json").read_text())
     cost = add_cost(folder, time.process_time() - c0, time.perf_counter() - w0, dofs)
+    if summary.get("status") != "completed":  # stopped by a signal: checkpointed, not a result
+        print(f"{tag}: {summary.get('status')} at step {summary.get('steps')} "
+              f"(stopped by {summary.get('stopped_by')}); start again to continue", flush=True)
+        return None
     rec = {"run": tag, "state": state, "medium": medium, "core_ratio": core, "seed": seed,
            "grains": pk.n, "solid_fraction": pk.solid_fraction, "tau_c": time_scale(pk),
            **cost, "steps": summary.get("steps"), "remeshes": summary.get("remeshes")}
@@ -200,6 +206,8 @@ def main(argv=None):
             for medium in a.media:
                 for core in (a.cores if medium == "immersed" else [1.0]):
                     rec = one(a.n, state, medium, core, seed, a.tau, root, a.checkpoint_every)
+                    if rec is None:  # asked to stop: the remaining runs wait for a restart
+                        return
                     print(json.dumps({k: v for k, v in rec.items() if k != "series"}),
                           flush=True)
                     record(out, rec)
