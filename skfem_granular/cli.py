@@ -124,7 +124,7 @@ def format_summary(s: dict) -> str:
     if "mesh" in s:
         m = s["mesh"]
         lines.append(
-            f"mesh: {m['kind']}, {m['vertices']} vertices, {m['p2_nodes']} P2 nodes, "
+            f"mesh at the end: {m['kind']}, {m['vertices']} vertices, {m['p2_nodes']} P2 nodes, "
             f"{m['triangles']} triangles, {m['dofs']} DOFs, min angle {m['min_angle']:.1f} deg"
         )
     if s.get("adaptive") and s.get("dt_range"):
