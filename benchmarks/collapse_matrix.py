@@ -112,8 +112,9 @@ def add_cost(folder: Path, cpu: float, wall: float, dofs: list) -> dict:
 
 
 def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict | None:
-    """Run (or continue, or read back) one run of the matrix and measure it; None if it was
-    stopped before its end (a signal): its checkpoint is kept and nothing is recorded."""
+    """Run (or continue, or read back) one run of the matrix and measure it; None if it did
+    not reach its end (stopped by a signal: its checkpoint is kept; or failed): nothing is
+    recorded then."""
     from skfem_granular.collapse import time_scale
 
     pk = packing(n, state, seed)
@@ -131,9 +132,11 @@ def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict |
             dofs.append(int(sim.space.N) if medium == "immersed" else 0)
     summary = json.loads((folder / "summary.json").read_text())
     cost = add_cost(folder, time.process_time() - c0, time.perf_counter() - w0, dofs)
-    if summary.get("status") != "completed":  # stopped by a signal: checkpointed, not a result
-        print(f"{tag}: {summary.get('status')} at step {summary.get('steps')} "
-              f"(stopped by {summary.get('stopped_by')}); start again to continue", flush=True)
+    if summary.get("status") != "completed":  # not a result: nothing is recorded
+        why = (f"failed: {summary.get('failed')}" if summary.get("status") == "failed" else
+               f"stopped by {summary.get('stopped_by')}; start again to continue")
+        print(f"{tag}: {summary.get('status')} at step {summary.get('steps')} ({why})",
+              flush=True)
         return None
     rec = {"run": tag, "state": state, "medium": medium, "core_ratio": core, "seed": seed,
            "grains": pk.n, "solid_fraction": pk.solid_fraction, "tau_c": time_scale(pk),
