@@ -10,7 +10,9 @@ Usage: ``python benchmarks/collapse_figures.py --dry results/collapse_dry_*.json
   base and 10 d_mean above it in the saved flow frames of an immersed run, over
   ``(rho_p - rho_f) g H0``;
 - ``collapse_matrix_runout.png`` (with ``--matrix results/collapse_matrix_n200.json``): the
-  run-out curves of the loose/dense, dry/immersed runs;
+  run-out curves of the loose/dense, dry/immersed runs (immersed: the smallest core ratio);
+- ``collapse_core_ratio_runout.png`` (with ``--matrix``): the immersed runs at every core
+  ratio, colour by packing, line style by core ratio;
 - ``collapse_matrix_pressure.png`` (with ``--matrix`` and ``--matrix-dir
   out/collapse_matrix_n200``): excess pore pressure along the base under the loose and
   the dense immersed columns (the first seed) in their first saved frames after the
@@ -77,11 +79,21 @@ def pressure_figure(flow_dir, packing_path, out):
 
 def matrix_figures(path, out, runs_dir=None):
     runs = json.loads(Path(path).read_text())["runs"]
+    immersed = sorted({r["core_ratio"] for r in runs if r["medium"] == "immersed"})
     curves = {f"{r['state']}, {r['medium']}"
               + (f" (core {r['core_ratio']:g})" if r["medium"] == "immersed" else "")
               + f", seed {r['seed']}": (r["series"]["t_over_tau"], r["series"]["runout"])
-              for r in sorted(runs, key=lambda r: r["run"])}
+              for r in sorted(runs, key=lambda r: r["run"])
+              if r["medium"] == "dry" or r["core_ratio"] == immersed[0]}
     plot_runout_curves(curves, out / "collapse_matrix_runout.png")
+    curves, styles = {}, {}
+    for r in sorted(runs, key=lambda r: r["run"]):
+        if r["medium"] == "immersed":
+            label = f"{r['state']}, core {r['core_ratio']:g}, seed {r['seed']}"
+            curves[label] = (r["series"]["t_over_tau"], r["series"]["runout"])
+            styles[label] = ("C0" if r["state"] == "dense" else "C1") + (
+                "-" if r["core_ratio"] == immersed[-1] else ":")
+    plot_runout_curves(curves, out / "collapse_core_ratio_runout.png", styles=styles)
     if runs_dir is None:
         return
     lines, styles = {}, {}

@@ -258,3 +258,22 @@ def test_dry_laws_published_coefficients():
         dry_runout(1.0, "Lube")
     with pytest.raises(ValueError, match="aspect ratio H0 / L0 must be finite and > 0"):
         dry_runout(-1.0)
+
+
+def test_runout_curves_plot_the_series_in_the_given_styles(tmp_path):
+    """Each curve is drawn from its own series, in its style if one is given."""
+    pytest.importorskip("matplotlib")
+    from skfem_granular.collapse.plots import plot_runout_curves
+
+    t = np.linspace(0.0, 8.0, 9)
+    curves = {"dense": (t, 0.1 * t), "loose": (t, 0.2 * t)}
+    ax = plot_runout_curves(curves, styles={"loose": "C1:"})
+    dense, loose = ax.get_lines()
+    np.testing.assert_array_equal(loose.get_ydata(), 0.2 * t)
+    from matplotlib.colors import same_color
+
+    assert loose.get_linestyle() == ":" and same_color(loose.get_color(), "C1")
+    assert dense.get_linestyle() == "-"
+    path = tmp_path / "runout.png"
+    plot_runout_curves(curves, path)
+    assert path.stat().st_size > 0

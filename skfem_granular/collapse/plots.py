@@ -18,14 +18,15 @@ def _plt():
     return plt
 
 
-def plot_runout_curves(curves, path=None, ax=None):
-    """``(L - L0) / L0`` against ``t / tau_c``; ``curves`` maps a label to ``(t/tau, runout)``."""
+def plot_runout_curves(curves, path=None, ax=None, styles=None):
+    """``(L - L0) / L0`` against ``t / tau_c``; ``curves`` maps a label to ``(t/tau, runout)``
+    (``styles``: label -> matplotlib format string)."""
     plt = _plt()
     fig = None
     if ax is None:
         fig, ax = plt.subplots(figsize=(5.5, 3.8))
     for label, (t, r) in curves.items():
-        ax.plot(t, r, label=label)
+        ax.plot(t, r, (styles or {}).get(label, "-"), label=label)
     ax.set_xlabel(r"$t / \tau_c$, $\tau_c = \sqrt{H_0/g}$")
     ax.set_ylabel(r"$(L - L_0) / L_0$")
     ax.legend(fontsize=8)
