@@ -91,8 +91,9 @@ def _parser() -> argparse.ArgumentParser:
     pk.add_argument("--seed", type=int, default=0)
     pk.add_argument("--size-ratio", type=float, default=1.8, help="d_max / d_min")
     pk.add_argument("--d-mean", type=float, default=1e-3, help="mean diameter (m)")
-    pk.add_argument("--margin", type=float, default=2.0,
-                    help="solid fraction measured this many d_max from the edges")
+    pk.add_argument("--margin", type=float, default=None,
+                    help="solid fraction measured this many d_max from the edges "
+                         "(default 2, and 0.5 for columns of fewer than 100 grains)")
     pk.add_argument("--scene", help="also write a collapse scene (TOML) using the packing")
     pk.add_argument("--dry", action="store_true", help="the scene without fluid")
     ren = sub.add_parser("render", help="picture (PNG) or animation (GIF/MP4) of a run's output")
@@ -164,6 +165,12 @@ def _check_out(field: str, out) -> None:
         raise ValueError(f"{field} = {str(out)!r}: must be a writable directory; {exc}") from None
 
 
+def _default_margin(n: int) -> float:
+    """The margin of the solid-fraction window (in d_max) when none is given: 2, and 0.5
+    for a column of fewer than 100 grains, too small to leave a window 2 d_max inside."""
+    return 2.0 if n >= 100 else 0.5
+
+
 def _pack(args) -> int:
     """``skfem-granular pack``: prepare, save, report (and write a scene)."""
     from pathlib import Path
@@ -174,7 +181,8 @@ def _pack(args) -> int:
     try:
         p = prepare_column(args.n, args.aspect, args.state, shape=args.shape, seed=args.seed,
                            size_ratio=args.size_ratio, d_mean=args.d_mean,
-                           margin=args.margin)
+                           margin=_default_margin(args.n) if args.margin is None
+                           else args.margin)
         path = p.save(args.out)
         if args.scene:
             Path(args.scene).write_text(column_toml(p, Path(path).resolve(),

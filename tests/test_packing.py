@@ -113,3 +113,26 @@ def test_target_fraction_bisection_and_out_of_reach():
     assert abs(p.solid_fraction - mid) <= 0.01 and p.state.startswith("mu=")
     with pytest.raises(ValueError, match="out of reach for these grains, pouring reaches"):
         prepare_to_fraction(30, 0.8, 0.9, **kw)
+
+
+def test_cli_pack_small_column_measures_half_a_grain_from_the_edges(tmp_path, capsys):
+    """``skfem-granular pack 30``: a column too small for a window 2 d_max inside its
+    edges is measured 0.5 d_max inside them (the default below 100 grains); the file's
+    solid fraction is the shadow area over that window's area, below Thue's 0.9069 and
+    above 2D random loose packing's 0.70; a margin asked for explicitly is kept, and one
+    that leaves no window is a one-line error."""
+    from skfem_granular.cli import main
+
+    path = tmp_path / "c.npz"
+    assert main(["pack", "30", "--out", str(path)]) == 0
+    pk = load_packing(path)
+    d_max = diameter_range(pk.d_mean, pk.size_ratio)[1]
+    x0, y0, x1, y1 = pk.window
+    assert (x0, y0) == pytest.approx((0.5 * d_max, 0.5 * d_max), rel=1e-12)
+    assert x1 == pytest.approx(pk.width - 0.5 * d_max, rel=1e-12)
+    assert pk.solid_fraction == solid_fraction(pk.outlines, pk.window)
+    assert 0.70 < pk.solid_fraction < 0.9069
+    assert "30 grains, dense: solid fraction" in capsys.readouterr().out
+    assert main(["pack", "30", "--out", str(tmp_path / "d.npz"), "--margin", "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "packing.margin = 2.0" in err
