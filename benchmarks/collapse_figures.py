@@ -93,7 +93,8 @@ def matrix_figures(path, out, runs_dir=None):
             curves[label] = (r["series"]["t_over_tau"], r["series"]["runout"])
             styles[label] = ("C0" if r["state"] == "dense" else "C1") + (
                 "-" if r["core_ratio"] == immersed[-1] else ":")
-    plot_runout_curves(curves, out / "collapse_core_ratio_runout.png", styles=styles)
+    if curves:
+        plot_runout_curves(curves, out / "collapse_core_ratio_runout.png", styles=styles)
     if runs_dir is None:
         return
     lines, styles = {}, {}

@@ -46,7 +46,7 @@ def packing(n: int, state: str, seed: int):
     path = RESULTS / "packings" / f"{state}_a{ASPECT:g}_n{n}_seed{seed}.npz"
     if path.exists():
         return load_packing(path)
-    pk = prepare_column(n, ASPECT, state, seed=seed, margin=2.0 if n >= 100 else 0.5)
+    pk = prepare_column(n, ASPECT, state, seed=seed)
     path.parent.mkdir(parents=True, exist_ok=True)
     pk.save(path)
     return pk

@@ -56,7 +56,7 @@ def packing(n: int, seed: int = 0):
     if path.exists():
         return load_packing(path)
     # the solid fraction is measured 2 d_max from the edges, or 0.5 d_max in the small columns
-    pk = prepare_column(n, ASPECT, "dense", seed=seed, margin=2.0 if n >= 100 else 0.5)
+    pk = prepare_column(n, ASPECT, "dense", seed=seed)
     PACKINGS.mkdir(parents=True, exist_ok=True)
     pk.save(path)
     return pk

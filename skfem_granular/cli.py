@@ -165,12 +165,6 @@ def _check_out(field: str, out) -> None:
         raise ValueError(f"{field} = {str(out)!r}: must be a writable directory; {exc}") from None
 
 
-def _default_margin(n: int) -> float:
-    """The margin of the solid-fraction window (in d_max) when none is given: 2, and 0.5
-    for a column of fewer than 100 grains, too small to leave a window 2 d_max inside."""
-    return 2.0 if n >= 100 else 0.5
-
-
 def _pack(args) -> int:
     """``skfem-granular pack``: prepare, save, report (and write a scene)."""
     from pathlib import Path
@@ -181,8 +175,7 @@ def _pack(args) -> int:
     try:
         p = prepare_column(args.n, args.aspect, args.state, shape=args.shape, seed=args.seed,
                            size_ratio=args.size_ratio, d_mean=args.d_mean,
-                           margin=_default_margin(args.n) if args.margin is None
-                           else args.margin)
+                           margin=args.margin)
         path = p.save(args.out)
         if args.scene:
             Path(args.scene).write_text(column_toml(p, Path(path).resolve(),

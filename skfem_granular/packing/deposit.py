@@ -118,7 +118,7 @@ def surface_height(outlines, width: float, strip: float) -> float:
 def prepare_column(n: int, aspect: float, state: str | Protocol = "dense", *, shape: str = "ngon",
                    d_mean: float = 1e-3, size_ratio: float = 1.8, sides: int = 12,
                    density: float = 2650.0, E: float = 1e6, seed: int = 0,
-                   margin: float = 2.0, t_max: float = 3.0, gravity: float = 9.81,
+                   margin: float | None = None, t_max: float = 3.0, gravity: float = 9.81,
                    progress=None) -> Packing:
     """A column of ``n`` grains at rest in a box of width ``L0``, dense or loose.
 
@@ -144,9 +144,10 @@ def prepare_column(n: int, aspect: float, state: str | Protocol = "dense", *, sh
     seed : int
         Seeds sizes, shapes, orientations and start positions: the same seed gives the
         same packing bit for bit.
-    margin : float
+    margin : float, optional
         The solid fraction is measured this many ``d_max`` away from the walls, the
-        floor and the free surface.
+        floor and the free surface. Default 2, and 0.5 for columns of fewer than 100
+        grains (too small to leave a window 2 ``d_max`` inside their edges).
     t_max : float
         Simulated time allowed for the grains to come to rest (s).
     progress : callable, optional
@@ -163,6 +164,8 @@ def prepare_column(n: int, aspect: float, state: str | Protocol = "dense", *, sh
     width = column_width(n, aspect, d_mean, size_ratio) if isinstance(aspect, (int, float)) \
         and not isinstance(aspect, bool) and aspect > 0 else 0.0
     _check(n, aspect, state, shape, size_ratio, width, d_max)
+    if margin is None:
+        margin = 2.0 if n >= 100 else 0.5
     m = margin * d_max
     if not (width > 2 * m and aspect * width > 2 * m):
         raise ValueError(f"packing.margin = {margin!r}: the column ({width:.3g} x "
