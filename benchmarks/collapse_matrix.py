@@ -5,6 +5,7 @@ Usage::
     python benchmarks/collapse_matrix.py --smoke            # 30 grains, 4 ms: the pipeline
     python benchmarks/collapse_matrix.py                    # 200 grains, a = 0.8, 8 tau_c
     python benchmarks/collapse_matrix.py --cores 0.8 --seeds 0 --media immersed
+    python benchmarks/collapse_matrix.py --n 1000 --cores 0.9 --seeds 0 --to-rest --tag n1000
 
 Every run is a column of ``--n`` grains (:func:`skfem_granular.packing.prepare_column`,
 12-gon near-disks, d_max / d_min = 1.8, aspect 0.8; the packings are kept in
@@ -21,6 +22,12 @@ are summed over the processes that ran it (kept in its folder's ``cost.json``); 
 time to 90 % of the final run-out as mean and spread over the seeds
 (:func:`skfem_granular.collapse.realisations`). Results:
 ``benchmarks/results/collapse_matrix_<tag>.json``.
+
+With ``--to-rest`` a run ends when the grains' kinetic energy has fallen below
+``--stop-ratio`` of its peak after ``--t-min`` (in tau_c), or at ``--t-max``; its folder
+then keeps ``rest.json`` (when, the energy ratio, whether at rest) and its record says
+``at_rest``. The records also carry the run's phase times (``phases_s``, summed over its
+processes), factorisations, Jacobian refreshes, the largest mesh and the peak memory.
 """
 
 from __future__ import annotations
@@ -53,9 +60,25 @@ def packing(n: int, state: str, seed: int):
 
 
 def completed(folder: Path) -> bool:
-    """Whether the run in ``folder`` reached its end (its summary says so)."""
+    """Whether the run in ``folder`` reached its end (its summary says so, or it came to
+    rest: ``rest.json``)."""
+    if (folder / "rest.json").exists():
+        return True
     path = folder / "summary.json"
     return path.exists() and json.loads(path.read_text()).get("status") == "completed"
+
+
+def energy_peak(pk, folder: Path) -> float:
+    """The largest kinetic energy in the run's history so far (0 for a new run)."""
+    from skfem_granular.collapse import history_columns, masses
+
+    path = folder / "history.csv"
+    if not path.exists():
+        return 0.0
+    cols = history_columns(path)
+    m, J = masses(pk)
+    E = 0.5 * (m * (cols["vx"] ** 2 + cols["vy"] ** 2) + J * cols["omega"] ** 2).sum(axis=1)
+    return float(E.max(initial=0.0))
 
 
 def simulation(pk, medium: str, core: float, t_end: float, folder: Path, every: int):
@@ -95,43 +118,73 @@ def measure(pk, folder: Path, domain) -> dict:
                        for k in ("t_over_tau", "runout", "E_x", "E_y", "froude")}}
 
 
-def add_cost(folder: Path, cpu: float, wall: float, dofs: list) -> dict:
+def add_cost(folder: Path, cpu: float, wall: float, dofs: list, phases: dict) -> dict:
     """Add this process's share to the run's ``cost.json`` and return the totals."""
+    import resource
+
     path = folder / "cost.json"
     c = json.loads(path.read_text()) if path.exists() else {
         "cpu_s": 0.0, "wall_s": 0.0, "processes": 0, "dofs_sum": 0, "dofs_steps": 0}
+    c.setdefault("phases_s", {})
     if dofs:  # a process that stepped (not one that only read a finished run back)
         c["cpu_s"] += cpu
         c["wall_s"] += wall
         c["processes"] += 1
         c["dofs_sum"] += int(np.sum(dofs))
         c["dofs_steps"] += len(dofs)
+        c["dofs_max"] = max(c.get("dofs_max", 0), int(np.max(dofs)))
+        c["peak_mb"] = max(c.get("peak_mb", 0.0),
+                           resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+        for k, v in phases.items():
+            c["phases_s"][k] = c["phases_s"].get(k, 0.0) + float(v)
         path.write_text(json.dumps(c) + "\n")
     return {"cpu_s": c["cpu_s"], "wall_s": c["wall_s"], "processes": c["processes"],
-            "dofs_mean": c["dofs_sum"] / c["dofs_steps"] if c["dofs_sum"] else None}
+            "dofs_mean": c["dofs_sum"] / c["dofs_steps"] if c["dofs_sum"] else None,
+            "dofs_max": c.get("dofs_max"), "peak_mb": c.get("peak_mb"),
+            "phases_s": c["phases_s"]}
 
 
-def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict | None:
+def one(n, state, medium, core, seed, tau_end, root: Path, every: int,
+        rest: dict | None = None) -> dict | None:
     """Run (or continue, or read back) one run of the matrix and measure it; None if it did
     not reach its end (stopped by a signal: its checkpoint is kept; or failed): nothing is
-    recorded then."""
+    recorded then. ``rest``: ``{"stop_ratio", "t_min"}`` (t_min in tau_c) to end the run
+    when the kinetic energy falls below ``stop_ratio`` of its peak after ``t_min``."""
     from skfem_granular.collapse import time_scale
 
     pk = packing(n, state, seed)
     tag = f"{state}_{medium}" + (f"_core{core:g}" if medium == "immersed" else "") + f"_s{seed}"
     folder = root / tag
-    c0, w0, dofs = time.process_time(), time.perf_counter(), []
+    c0, w0, dofs, phases = time.process_time(), time.perf_counter(), [], {}
+    tau = time_scale(pk)
     if completed(folder):
         from skfem_granular.collapse import column_scene
 
         domain = column_scene(pk, fluid=False).domain
     else:
-        sim = simulation(pk, medium, core, tau_end * time_scale(pk), folder, every)
+        sim = simulation(pk, medium, core, tau_end * tau, folder, every)
         domain = sim.scene.domain
-        for _ in sim.evolve(progress=False):
+        peak = energy_peak(pk, folder) if rest else 0.0
+        steps = sim.evolve(progress=False)
+        for t, _ in steps:
             dofs.append(int(sim.space.N) if medium == "immersed" else 0)
+            if rest:
+                E = sim.dem.kinetic_energy()
+                peak = max(peak, E)
+                if t > rest["t_min"] * tau and E < rest["stop_ratio"] * peak:
+                    steps.close()  # at rest: the files are completed by the generator
+                    (folder / "rest.json").write_text(json.dumps(
+                        {"t": t, "t_over_tau": t / tau, "energy_ratio": E / peak,
+                         "stop_ratio": rest["stop_ratio"], "at_rest": True,
+                         "steps": sim.steps_done}) + "\n")
+                    break
+        phases = dict(sim.result.summary.get("wall_time", {})) if sim.result else {}
     summary = json.loads((folder / "summary.json").read_text())
-    cost = add_cost(folder, time.process_time() - c0, time.perf_counter() - w0, dofs)
+    cost = add_cost(folder, time.process_time() - c0, time.perf_counter() - w0, dofs, phases)
+    rest_rec = json.loads((folder / "rest.json").read_text()) if (
+        folder / "rest.json").exists() else None
+    if rest_rec is not None:
+        summary["status"] = "completed"  # at rest before t_max: the run's end
     if summary.get("status") != "completed":  # not a result: nothing is recorded
         why = (f"failed: {summary.get('failed')}" if summary.get("status") == "failed" else
                f"stopped by {summary.get('stopped_by')}; start again to continue")
@@ -140,7 +193,14 @@ def one(n, state, medium, core, seed, tau_end, root: Path, every: int) -> dict |
         return None
     rec = {"run": tag, "state": state, "medium": medium, "core_ratio": core, "seed": seed,
            "grains": pk.n, "solid_fraction": pk.solid_fraction, "tau_c": time_scale(pk),
-           **cost, "steps": summary.get("steps"), "remeshes": summary.get("remeshes")}
+           **cost, "steps": summary.get("steps"), "remeshes": summary.get("remeshes"),
+           "factorizations": summary.get("factorizations"),
+           "jacobian_refreshes": summary.get("jacobian_refreshes"),
+           "t_end_over_tau": summary.get("t_end", 0.0) / tau}
+    if rest:
+        rec["at_rest"] = rest_rec is not None
+        if rest_rec is not None:
+            rec["energy_ratio"] = rest_rec["energy_ratio"]
     rec.update(measure(pk, folder, domain))
     return rec
 
@@ -198,9 +258,17 @@ def main(argv=None):
     ap.add_argument("--checkpoint-every", type=int, default=200)
     ap.add_argument("--tag", default=None)
     ap.add_argument("--smoke", action="store_true", help="30 grains, 0.1 tau_c, seed 0")
+    ap.add_argument("--to-rest", action="store_true",
+                    help="end a run when its kinetic energy is below --stop-ratio of its peak")
+    ap.add_argument("--stop-ratio", type=float, default=1e-3)
+    ap.add_argument("--t-min", type=float, default=3.0, help="earliest rest, in tau_c")
+    ap.add_argument("--t-max", type=float, default=20.0, help="latest end with --to-rest")
     a = ap.parse_args(argv)
     if a.smoke:
         a.n, a.seeds, a.tau, a.cores, a.checkpoint_every = 30, [0], 0.1, [0.8], 10
+    rest = {"stop_ratio": a.stop_ratio, "t_min": a.t_min} if a.to_rest else None
+    if rest:
+        a.tau = a.t_max
     tag = a.tag or ("smoke" if a.smoke else f"n{a.n}")
     root = ROOT / "out" / f"collapse_matrix_{tag}"
     out = RESULTS / f"collapse_matrix_{tag}.json"
@@ -208,7 +276,8 @@ def main(argv=None):
         for state in a.states:
             for medium in a.media:
                 for core in (a.cores if medium == "immersed" else [1.0]):
-                    rec = one(a.n, state, medium, core, seed, a.tau, root, a.checkpoint_every)
+                    rec = one(a.n, state, medium, core, seed, a.tau, root,
+                              a.checkpoint_every, rest)
                     if rec is None:  # asked to stop: the remaining runs wait for a restart
                         return
                     print(json.dumps({k: v for k, v in rec.items() if k != "series"}),
