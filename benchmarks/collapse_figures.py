@@ -17,6 +17,9 @@ Usage: ``python benchmarks/collapse_figures.py --dry results/collapse_dry_*.json
   out/collapse_matrix_n200``): excess pore pressure along the base under the loose and
   the dense immersed columns (the first seed) in their first saved frames after the
   release.
+
+``--stem NAME`` names the matrix figures ``NAME_runout.png`` and ``NAME_pressure.png``
+(default ``collapse_matrix``: another matrix, such as the 1000-grain runs, keeps its own).
 """
 
 from __future__ import annotations
@@ -77,7 +80,7 @@ def pressure_figure(flow_dir, packing_path, out):
                         ylabel=r"$(p - p_{ref}) / ((\rho_p - \rho_f) g H_0)$", styles=styles)
 
 
-def matrix_figures(path, out, runs_dir=None):
+def matrix_figures(path, out, runs_dir=None, stem="collapse_matrix"):
     runs = json.loads(Path(path).read_text())["runs"]
     immersed = sorted({r["core_ratio"] for r in runs if r["medium"] == "immersed"})
     curves = {f"{r['state']}, {r['medium']}"
@@ -85,7 +88,7 @@ def matrix_figures(path, out, runs_dir=None):
               + f", seed {r['seed']}": (r["series"]["t_over_tau"], r["series"]["runout"])
               for r in sorted(runs, key=lambda r: r["run"])
               if r["medium"] == "dry" or r["core_ratio"] == immersed[0]}
-    plot_runout_curves(curves, out / "collapse_matrix_runout.png")
+    plot_runout_curves(curves, out / f"{stem}_runout.png")
     curves, styles = {}, {}
     for r in sorted(runs, key=lambda r: r["run"]):
         if r["medium"] == "immersed":
@@ -93,7 +96,7 @@ def matrix_figures(path, out, runs_dir=None):
             curves[label] = (r["series"]["t_over_tau"], r["series"]["runout"])
             styles[label] = ("C0" if r["state"] == "dense" else "C1") + (
                 "-" if r["core_ratio"] == immersed[-1] else ":")
-    if curves:
+    if curves and stem == "collapse_matrix":
         plot_runout_curves(curves, out / "collapse_core_ratio_runout.png", styles=styles)
     if runs_dir is None:
         return
@@ -115,7 +118,7 @@ def matrix_figures(path, out, runs_dir=None):
             label = f"{r['state']} (core {r['core_ratio']:g}), t = {t / r['tau_c']:.2f} tau_c"
             lines[label] = excess_pressure(f, P, ref) / scale
             styles[label] = f"C{k}{'-' if j == 0 else '--'}"
-    plot_pressure_lines(P[0], lines, out / "collapse_matrix_pressure.png", scale=packing.width,
+    plot_pressure_lines(P[0], lines, out / f"{stem}_pressure.png", scale=packing.width,
                         ylabel=r"base: $(p - p_{ref}) / ((\rho_p - \rho_f) g H_0)$",
                         styles=styles)
 
@@ -127,6 +130,7 @@ def main(argv=None):
     ap.add_argument("--packing")
     ap.add_argument("--matrix", help="results/collapse_matrix_<tag>.json")
     ap.add_argument("--matrix-dir", help="the matrix runs' folders (for the pressure)")
+    ap.add_argument("--stem", default="collapse_matrix", help="file names of the matrix figures")
     ap.add_argument("--out", default=str(ROOT / "docs" / "figures"))
     a = ap.parse_args(argv)
     out = Path(a.out)
@@ -136,7 +140,7 @@ def main(argv=None):
     if a.flow_dir:
         pressure_figure(a.flow_dir, a.packing, out)
     if a.matrix:
-        matrix_figures(a.matrix, out, a.matrix_dir)
+        matrix_figures(a.matrix, out, a.matrix_dir, a.stem)
 
 
 if __name__ == "__main__":
