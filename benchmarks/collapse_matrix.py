@@ -46,14 +46,15 @@ RESULTS = ROOT / "benchmarks/results"
 ASPECT = 0.8
 
 
-def packing(n: int, state: str, seed: int):
-    """The column (prepared once, then read from ``results/packings/``)."""
+def packing(n: int, state: str, seed: int, t_max: float = 3.0):
+    """The column (prepared once, then read from ``results/packings/``; ``t_max``: the
+    deposition's time limit, :func:`~skfem_granular.packing.prepare_column`)."""
     from skfem_granular.packing import load_packing, prepare_column
 
     path = RESULTS / "packings" / f"{state}_a{ASPECT:g}_n{n}_seed{seed}.npz"
     if path.exists():
         return load_packing(path)
-    pk = prepare_column(n, ASPECT, state, seed=seed)
+    pk = prepare_column(n, ASPECT, state, seed=seed, t_max=t_max)
     path.parent.mkdir(parents=True, exist_ok=True)
     pk.save(path)
     return pk
@@ -145,14 +146,14 @@ def add_cost(folder: Path, cpu: float, wall: float, dofs: list, phases: dict) ->
 
 
 def one(n, state, medium, core, seed, tau_end, root: Path, every: int,
-        rest: dict | None = None) -> dict | None:
+        rest: dict | None = None, packing_t_max: float = 3.0) -> dict | None:
     """Run (or continue, or read back) one run of the matrix and measure it; None if it did
     not reach its end (stopped by a signal: its checkpoint is kept; or failed): nothing is
     recorded then. ``rest``: ``{"stop_ratio", "t_min"}`` (t_min in tau_c) to end the run
     when the kinetic energy falls below ``stop_ratio`` of its peak after ``t_min``."""
     from skfem_granular.collapse import time_scale
 
-    pk = packing(n, state, seed)
+    pk = packing(n, state, seed, packing_t_max)
     tag = f"{state}_{medium}" + (f"_core{core:g}" if medium == "immersed" else "") + f"_s{seed}"
     folder = root / tag
     c0, w0, dofs, phases = time.process_time(), time.perf_counter(), [], {}
@@ -263,6 +264,8 @@ def main(argv=None):
     ap.add_argument("--stop-ratio", type=float, default=1e-3)
     ap.add_argument("--t-min", type=float, default=3.0, help="earliest rest, in tau_c")
     ap.add_argument("--t-max", type=float, default=20.0, help="latest end with --to-rest")
+    ap.add_argument("--packing-t-max", type=float, default=3.0,
+                    help="deposition time limit (s) of a packing prepared here")
     a = ap.parse_args(argv)
     if a.smoke:
         a.n, a.seeds, a.tau, a.cores, a.checkpoint_every = 30, [0], 0.1, [0.8], 10
@@ -277,7 +280,7 @@ def main(argv=None):
             for medium in a.media:
                 for core in (a.cores if medium == "immersed" else [1.0]):
                     rec = one(a.n, state, medium, core, seed, a.tau, root,
-                              a.checkpoint_every, rest)
+                              a.checkpoint_every, rest, a.packing_t_max)
                     if rec is None:  # asked to stop: the remaining runs wait for a restart
                         return
                     print(json.dumps({k: v for k, v in rec.items() if k != "series"}),
