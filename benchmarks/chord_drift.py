@@ -12,10 +12,10 @@ The column of :mod:`scaling_contact` (dense, 12-gon near-disks, core ratio 0.9, 
 iteration (:class:`skfem_granular.coupled.monolithic.MonolithicCoupling`) is logged: its
 size (largest velocity entry), the tolerance, the contraction rate against the update
 before, and every refresh of the Jacobian with the rule that asked for it
-(:class:`skfem_granular.fluid.newton.ChordStall`: ``ledger``, the held factorisation's
-extra iterations reached the refresh price within the step, or ``ledger_at_start``, by
-the steps before its first update; ``limit``, the tolerance would not be reached within the
-iteration limit at the current rate; ``diverging``, rate >= 1).
+(:attr:`skfem_granular.fluid.newton.ChordStall.reason`: ``ledger``, the held
+factorisation's extra iterations reached the refresh price within the step, or
+``ledger_at_start``, by the steps before; ``limit``, the tolerance would not be reached
+within the iteration limit at the current rate; ``diverging``, rate >= 1).
 
 Two alternatives are switches of this script only, not of the library (measured, not
 kept: docs/benchmarks.md, "Why the 1000-grain column refreshes"):
@@ -54,29 +54,17 @@ def instrument(log: list, anderson: int, max_iterations: int | None, sim_ref: di
     state = {"refreshed": False}
 
     def logged_observe(self, it, dn, done, tol):
-        prev, due_before = self.prev, self._due
+        prev = self.prev
         ledger = None if self.ledger is None else self.ledger.extra_iterations
         observe(self, it, dn, done, tol)
-        rate = dn / prev if prev else None
-        why = None
-        if self._due and not due_before:
-            if rate is not None and rate >= 1.0:
-                why = "diverging"
-            elif self.ledger is not None and self.ledger.extra_iterations + self._extra(it) \
-                    >= newton.REFRESH_ITERATIONS:
-                why = "ledger"
-            else:
-                why = "limit"
-        log.append({"ev": "update", "it": it, "dn": dn, "tol": tol, "rate": rate,
-                    "done": done, "ledger": ledger, "refresh_asked": why})
+        log.append({"ev": "update", "it": it, "dn": dn, "tol": tol,
+                    "rate": dn / prev if prev else None, "done": done, "ledger": ledger})
 
     def logged_refresh_due(self, it):
         r = refresh_due(self, it)
         if r:
             state["refreshed"] = True
-            log.append({"ev": "refresh", "it": it})
-            if it == 1:  # due from the start: the ledger of the steps before
-                log.append({"ev": "rule", "refresh_asked": "ledger_at_start"})
+            log.append({"ev": "refresh", "it": it, "refresh_asked": self.reason})
         return r
 
     newton.ChordStall.observe = logged_observe

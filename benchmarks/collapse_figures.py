@@ -19,7 +19,8 @@ Usage: ``python benchmarks/collapse_figures.py --dry results/collapse_dry_*.json
   release.
 
 ``--stem NAME`` names the matrix figures ``NAME_runout.png`` and ``NAME_pressure.png``
-(default ``collapse_matrix``: another matrix, such as the 1000-grain runs, keeps its own).
+(default ``collapse_matrix``: another matrix, such as the 1000-grain runs, keeps its own);
+the core-ratio figure is drawn when the matrix has immersed runs at two core ratios or more.
 """
 
 from __future__ import annotations
@@ -96,7 +97,7 @@ def matrix_figures(path, out, runs_dir=None, stem="collapse_matrix"):
             curves[label] = (r["series"]["t_over_tau"], r["series"]["runout"])
             styles[label] = ("C0" if r["state"] == "dense" else "C1") + (
                 "-" if r["core_ratio"] == immersed[-1] else ":")
-    if curves and stem == "collapse_matrix":
+    if len(immersed) > 1:  # the core ratios side by side
         plot_runout_curves(curves, out / "collapse_core_ratio_runout.png", styles=styles)
     if runs_dir is None:
         return

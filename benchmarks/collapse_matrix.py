@@ -71,15 +71,15 @@ def completed(folder: Path) -> bool:
 
 def energy_peak(pk, folder: Path) -> float:
     """The largest kinetic energy in the run's history so far (0 for a new run)."""
-    from skfem_granular.collapse import history_columns, masses
+    from skfem_granular.collapse import history_columns, kinetic_energies, masses
 
     path = folder / "history.csv"
     if not path.exists():
         return 0.0
-    cols = history_columns(path)
+    c = history_columns(path)
     m, J = masses(pk)
-    E = 0.5 * (m * (cols["vx"] ** 2 + cols["vy"] ** 2) + J * cols["omega"] ** 2).sum(axis=1)
-    return float(E.max(initial=0.0))
+    return max((sum(kinetic_energies(m, J, (vx, vy), w))
+                for vx, vy, w in zip(c["vx"], c["vy"], c["omega"], strict=True)), default=0.0)
 
 
 def simulation(pk, medium: str, core: float, t_end: float, folder: Path, every: int):

@@ -115,3 +115,39 @@ def test_coupled_run_lands_on_t_end(tmp_path):
     assert full.t[-1] == resumed.t[-1] == 2e-3
     for c in ("t", "vy", "Fy"):
         assert np.array_equal(getattr(full, c), getattr(resumed, c)), c
+
+
+class _Ledger:
+    """The part of a factorisation cache :class:`ChordStall` keeps its account on."""
+
+    def __init__(self, extra_iterations):
+        self.extra_iterations = extra_iterations
+
+
+def _observed(stall, sizes, tol):
+    for it, dn in enumerate(sizes, start=1):
+        stall.observe(it, dn, False, tol)
+    return stall.reason
+
+
+def test_chord_stall_names_the_rule_that_asks_for_a_refresh(monkeypatch):
+    """Each rule of the amortised policy, on update sequences built to trip it alone."""
+    monkeypatch.setattr(newton, "STALL_RULE", "amortised")
+    price = newton.REFRESH_ITERATIONS
+    # the held factorisation's account already at the price: due before the first update
+    assert newton.ChordStall(15, _Ledger(price)).reason == "ledger_at_start"
+    assert newton.ChordStall(15, _Ledger(price - 1)).reason is None
+    # an update larger than the one before
+    assert _observed(newton.ChordStall(15, _Ledger(0)), [1.0, 2.0], 1e-8) == "diverging"
+    # rate 0.9: 1e-8 would take 174 more updates, 13 are left
+    assert _observed(newton.ChordStall(15, _Ledger(0)), [1.0, 0.9], 1e-8) == "limit"
+    # rate 0.5 reaches 0.05 in time, but the 5th update is the 2nd beyond a fresh
+    # Jacobian's 3: price - 2 + 2 reaches the price (the 4th, price - 1, did not)
+    assert _observed(newton.ChordStall(15, _Ledger(price - 2)),
+                     [1.0, 0.5, 0.25, 0.125], 0.05) is None
+    stall = newton.ChordStall(15, _Ledger(price - 2))
+    assert _observed(stall, [1.0, 0.5, 0.25, 0.125, 0.0625], 0.05) == "ledger"
+    # the rate rule, without a ledger
+    monkeypatch.setattr(newton, "STALL_RULE", "rate")
+    assert _observed(newton.ChordStall(15), [1.0, 0.5], 0.4) == "rate"
+    assert _observed(newton.ChordStall(15), [1.0, 0.2], 0.1) is None

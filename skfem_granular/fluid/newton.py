@@ -148,6 +148,12 @@ class ChordStall:
         The size of the last update.
     refreshes : int
         Refreshes asked for in this step.
+    reason : str or None
+        Why the last refresh was asked for: ``"ledger_at_start"`` (the held
+        factorisation's extra iterations had reached :data:`REFRESH_ITERATIONS` in
+        earlier steps), ``"ledger"`` (they reach it in this step), ``"rate"`` (the rate
+        rule), ``"diverging"`` (an update not smaller than the one before) or
+        ``"limit"`` (the tolerance not reached within the iteration limit at this rate).
     """
 
     def __init__(self, max_iterations: int, ledger=None) -> None:
@@ -157,6 +163,7 @@ class ChordStall:
         self.refreshes = 0
         self.ledger = ledger if STALL_RULE == "amortised" else None
         self._due = self.ledger is not None and self.ledger.extra_iterations >= REFRESH_ITERATIONS
+        self.reason: str | None = "ledger_at_start" if self._due else None
         self._since = 0  # iteration of the last refresh (0: the operator the step began with)
 
     def _extra(self, it: int) -> int:
@@ -172,14 +179,20 @@ class ChordStall:
         if done or prev is None or it < self._since + 2 or prev <= 0.0:
             return
         rate = dn / prev
-        if self.ledger is not None:
-            slow = rate >= 1.0 or self.ledger.extra_iterations + self._extra(it) >= REFRESH_ITERATIONS
+        reason: str | None
+        if rate >= 1.0:
+            reason = "diverging"
+        elif self.ledger is not None:
+            over = self.ledger.extra_iterations + self._extra(it) >= REFRESH_ITERATIONS
+            reason = "ledger" if over else None
         else:
-            slow = rate > self.rate
+            reason = "rate" if rate > self.rate else None
         # too slow, or (iterations still needed at this rate) too many for the limit
-        if slow or (dn > tol and rate > 0.0 and math.log(tol / dn) / math.log(rate)
-                    > self.max_iterations - it):
-            self._due = True
+        if reason is None and (dn > tol and rate > 0.0 and math.log(tol / dn) / math.log(rate)
+                               > self.max_iterations - it):
+            reason = "limit"
+        if reason is not None:
+            self._due, self.reason = True, reason
 
     def refresh_due(self, it: int) -> bool:
         """Whether to factorise the Jacobian before correction ``it`` (counted if so)."""
