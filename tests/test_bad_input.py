@@ -144,6 +144,8 @@ CLI = [
      ["coupling.scheme = 'magic'", "'monolithic' or 'partitioned'"]),
     ("remesh_fraction-zero", scene("[coupling]\nremesh_fraction = 0.0\n"), [],
      ["coupling.remesh_fraction = 0.0", "> 0 and <= 1"]),
+    ("newton_tol-loose", scene("[coupling]\nnewton_tol = 0.01\n"), [],
+     ["coupling.newton_tol = 0.01", "> 0 and <= 0.001"]),
     ("box-inverted", scene(domain="[domain]\nbox = [0.0, 0.0, -1.0, 1.0]\n"), [],
      ["domain.box", "x1 > x0, y1 > y0"]),
     ("box-three-numbers", scene(domain="[domain]\nbox = [0.0, 0.0, 1.0]\n"), [],

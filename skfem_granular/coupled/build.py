@@ -50,8 +50,10 @@ def build_coupling(scene, mesh, dem, centers=None, terms=None, assembly="compile
 
     space = TaylorHood(mesh, assembly=assembly)
     walls = {"wall": (0.0, 0.0)}
-    cls = MonolithicCoupling if scene.coupling == "monolithic" else PartitionedCoupling
     centers = dem.positions.copy() if centers is None else np.array(centers, dtype=float)
-    return cls(space, scene.fluid, walls, centers, dem.mass.copy(),
-               dem.inertia.copy(), convection=scene.effects.convection,
-               rotation=scene.effects.rotation, imposed=dem.imposed.copy(), terms=terms)
+    args = (space, scene.fluid, walls, centers, dem.mass.copy(), dem.inertia.copy())
+    common = dict(convection=scene.effects.convection, rotation=scene.effects.rotation,
+                  imposed=dem.imposed.copy(), terms=terms)
+    if scene.coupling == "monolithic":
+        return MonolithicCoupling(*args, newton_tol=scene.newton_tol, **common)
+    return PartitionedCoupling(*args, **common)

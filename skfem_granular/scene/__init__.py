@@ -33,7 +33,7 @@ meaning: :func:`.reference.scene_reference`, the docs' scene-file reference)::
     [time]      t_end, dt, dem_dt, adaptive, tol, dt_min
     [effects]   fluid, gravity, convection, contacts, rotation, remeshing
     [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction,
-                mesh_motion = "fixed" | "ale", remesh_travel
+                mesh_motion = "fixed" | "ale", remesh_travel, newton_tol
     [output]    directory, vtu_every, checkpoint_every
     gravity = [gx, gy]                              (top level, before the first section)
 """

@@ -96,6 +96,9 @@ SCENE_DOCS: Docs = {
     "remesh_travel": KeyDoc("float", "moving mesh: remesh when a particle has travelled this "
                             "many radii from where its mesh was built", "> 0 and <= 100",
                             section="coupling"),
+    "newton_tol": KeyDoc("float", "monolithic coupling: the corrector of a step stops when its "
+                         "update is below this fraction of the velocity scale",
+                         "> 0 and <= 0.001", section="coupling"),
     "output_dir": KeyDoc("string", "where the run writes (relative to the current "
                          "directory); not given: nowhere", "a directory path", key="directory",
                          section="output"),

@@ -54,6 +54,14 @@ class Scene:
     remesh_travel : float
         ALE: how far (in bounding radii) a particle may travel from the place
         its mesh was graded for before a remesh.
+    newton_tol : float
+        The monolithic coupling's corrector stops when its update (or the error left,
+        estimated from the contraction rate) is below this fraction of the velocity
+        scale. The default 1e-6 leaves the grains' velocities within about 2e-4 of
+        the largest grain speed of a tightly converged run in a dense immersed
+        column, under 0.1 % of what halving the time step changes; a tighter
+        tolerance costs Jacobian refreshes: docs/benchmarks.md, "The corrector's
+        tolerance".
     output_dir : str or None
     vtu_every : int
         Write the flow and outlines every this many steps (0: only the last).
@@ -82,6 +90,7 @@ class Scene:
     remesh_fraction: float = 0.25
     mesh_motion: str = "auto"
     remesh_travel: float = 1.0
+    newton_tol: float = 1e-6
     output_dir: str | None = None
     vtu_every: int = 10
     checkpoint_every: int = 0
@@ -152,6 +161,8 @@ class Scene:
             raise ValueError("coupling.mesh_motion = 'ale': needs coupling.scheme = "
                              "'monolithic' (the partitioned scheme runs on a fixed mesh)")
         num("coupling", "remesh_travel", self.remesh_travel, lo=0, hi=100.0)
+        object.__setattr__(self, "newton_tol",
+                           num("coupling", "newton_tol", self.newton_tol, lo=0, hi=1e-3))
         for key in ("vtu_every", "checkpoint_every"):
             v = getattr(self, key)
             if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
