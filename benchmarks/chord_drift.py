@@ -5,7 +5,13 @@ Usage::
     python benchmarks/chord_drift.py --n 1000                     # the library's iteration
     python benchmarks/chord_drift.py --n 1000 --max-iterations 40 # a larger iteration limit
     python benchmarks/chord_drift.py --n 1000 --anderson 4        # Anderson mixing, depth 4
+    python benchmarks/chord_drift.py --n 400 --steps 30 --newton-tol 1e-8 --convection off
+    python benchmarks/chord_drift.py --n 400 --steps 30 --newton-tol 1e-8 --mesh-motion fixed
     python benchmarks/chord_drift.py --n 25 --steps 12 --out /tmp/x.json   # quick look
+
+``--convection off`` (unsteady Stokes) and ``--mesh-motion fixed`` (no ALE: the mesh stays
+until a remesh) take away one of the two things a held Jacobian drifts with, the flow
+and the moving mesh, to tell which of them makes it go stale.
 
 The column of :mod:`scaling_contact` (dense, 12-gon near-disks, core ratio 0.9, steps of
 0.2 ms) is released in water for ``--steps`` steps. Every update of the coupled chord
@@ -35,6 +41,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -116,6 +123,12 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=12)
     ap.add_argument("--max-iterations", type=int, default=None)
     ap.add_argument("--anderson", type=int, default=0)
+    ap.add_argument("--newton-tol", type=float, default=None,
+                    help="the corrector's tolerance (default: the scene's)")
+    ap.add_argument("--convection", choices=("on", "off"), default="on",
+                    help="off: unsteady Stokes (is the held Jacobian's drift the convection's?)")
+    ap.add_argument("--mesh-motion", choices=("ale", "fixed"), default="ale",
+                    help="fixed: the mesh stays until a remesh (is it the moving gaps'?)")
     ap.add_argument("--tag", default=None)
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)
@@ -129,6 +142,9 @@ def main(argv=None):
     pk = packing(a.n)
     scene = column_scene(pk, fluid=True, core_ratio=CORE_RATIO, t_end=a.steps * DT, dt=DT,
                          name=f"chord_drift_{a.n}")
+    scene = replace(scene, mesh_motion=a.mesh_motion,
+                    effects=replace(scene.effects, convection=a.convection == "on"),
+                    **({} if a.newton_tol is None else {"newton_tol": a.newton_tol}))
     t0, c0 = time.perf_counter(), time.process_time()
     sim = sim_ref["sim"] = Simulation(scene)
     start = len(log)
@@ -141,6 +157,8 @@ def main(argv=None):
     rec = {"benchmark": "chord_drift", "grains": a.n, "dofs": int(sim.space.N),
            "steps": len(steps), "dt": DT, "max_iterations": a.max_iterations or 15,
            "anderson": a.anderson, "refresh_iterations": newton.REFRESH_ITERATIONS,
+           "newton_tol": scene.newton_tol, "convection": a.convection,
+           "mesh_motion": a.mesh_motion, "remeshes": int(sim.stepper.remeshes),
            "iterations": [e["iterations"] for e in steps],
            "iterations_total": sum(e["iterations"] for e in steps),
            "refreshes": sum(e["ev"] == "refresh" for e in log),
