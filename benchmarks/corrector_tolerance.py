@@ -36,7 +36,6 @@ import argparse
 import json
 import os
 import resource
-import subprocess
 import sys
 import time
 from dataclasses import replace
@@ -107,11 +106,10 @@ def collapse_child(tol: float, seed: int, t_end: float) -> dict:
 
 
 def run_child(*args) -> dict:
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", *map(str, args)]
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        p for p in (str(ROOT), str(ROOT / "benchmarks"), os.environ.get("PYTHONPATH")) if p)}
-    out = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, text=True, env=env)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    """This script's ``--child`` run of ``args`` in a fresh interpreter."""
+    from child_process import run_child as run
+
+    return run(__file__, *args)
 
 
 def velocity_errors(run: dict, ref: dict) -> list:

@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 from dataclasses import replace
@@ -131,11 +130,10 @@ def seeded_collapse(seed: int):
 
 
 def run_child(*args) -> dict:
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", *map(str, args)]
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        p for p in (str(ROOT), str(ROOT / "benchmarks"), os.environ.get("PYTHONPATH")) if p)}
-    out = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, text=True, env=env)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    """This script's ``--child`` run of ``args`` in a fresh interpreter."""
+    from child_process import run_child as run
+
+    return run(__file__, *args)
 
 
 def summarise(runs: list) -> list:
