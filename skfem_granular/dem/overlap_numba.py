@@ -29,7 +29,7 @@ from .overlap import EPS, EPS_PARALLEL, TAU, OverlapGeometry
 
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
-__all__ = ["AVAILABLE", "overlap_pairs_numba"]
+__all__ = ["AVAILABLE", "overlap_pairs_numba", "pair_overlap"]
 
 
 @lazy_njit
@@ -148,8 +148,10 @@ def _principal_axis(pts, npts, out, p):
 
 
 @lazy_njit
-def _pair(A, na, B, nb, out, p, Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts):
-    """Overlap geometry of one pair, written to ``out[p]``."""
+def pair_overlap(A, na, B, nb, out, p, Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts):
+    """Overlap geometry of one pair, written to ``out[p]`` (area, cx, cy, ux, uy, length,
+    ncross); ``Sa`` ... ``pts`` are scratch arrays sized as in :func:`_kernel`
+    (compiled code only: the compiled substep loop calls it too)."""
     rx = 0.0
     ry = 0.0
     for k in range(na):
@@ -238,7 +240,7 @@ def _kernel(V, count, I, J, out):
     acc = np.empty(3)
     pts = np.empty((4 * nmax + 4, 2))
     for p in range(I.shape[0]):
-        _pair(V[I[p]], count[I[p]], V[J[p]], count[J[p]], out, p,
+        pair_overlap(V[I[p]], count[I[p]], V[J[p]], count[J[p]], out, p,
               Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts)
 
 

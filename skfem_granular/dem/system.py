@@ -8,9 +8,9 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import overlap_numba, pipeline
+from . import overlap_numba, pipeline, substeps_numba
 from .broadphase import NeighbourList, circle_pairs, wall_pairs
-from .contact_law import ContactHistory, ContactLaw
+from .contact_law import ContactForces, ContactHistory, ContactLaw
 from .integrator import BDF2History, correct, predict, stable_time_step
 from .motion import pose_derivative
 from .particles import Body, ParticleArrays, rotate_outlines
@@ -152,7 +152,7 @@ class DEMSystem:
         if margin is None:
             margin = 0.2 * float(p.radius.mean()) if N else 0.0
         self.neighbours = NeighbourList(margin)
-        self.contacts = None
+        self.contacts: ContactForces | None = None
         self.dt_stable = stable_time_step(self.mass, self.law.E, self.law.gamma)
         self.dt = self._check_dt(self.dt_stable if dt is None else dt, "dt")
         self.domain = None if domain is None else tuple(float(x) for x in domain)
@@ -372,9 +372,46 @@ class DEMSystem:
             raise ValueError(f"dt_outer = {dt_outer!r}: must be finite and > 0")
         h = self.dt if max_substep is None else self._check_dt(max_substep, "max_substep")
         n = max(1, math.ceil(dt_outer / h * (1.0 - 1e-12)))
-        for _ in range(n):
-            self.step(dt_outer / n)
+        dt = self._check_dt(dt_outer / n)
+        done = 0
+        while done < n:
+            if self._compiled_ready(dt):
+                k = self._compiled_substeps(n - done, dt)
+                done += k
+                if done == n:
+                    break
+            self.step(dt)  # the first of a restart, a Verlet rebuild, or the numpy path
+            done += 1
         return n
+
+    def _compiled_ready(self, dt: float) -> bool:
+        """Whether the compiled substep loop can take the next substeps."""
+        h = self.bdf2
+        return (self.backend == "numba" and self.n > 0 and not self.force_callbacks
+                and not self.imposed.any() and h.a_prev is not None
+                and h.q_prev is not None and h.dt_prev is not None
+                and dt / h.dt_prev <= MAX_STEP_RATIO and self.neighbours.reference is not None
+                and self.neighbours.reference.shape == (2, self.n))
+
+    def _compiled_substeps(self, n: int, dt: float) -> int:
+        """Up to ``n`` substeps in :mod:`.substeps_numba`; returns how many were done."""
+        p = self.particles
+        F0, T0 = pipeline.reset_forces(self, self.t)
+        V = pipeline.body_vertices(self, p.q)
+        nb = self.neighbours
+        done, c, F, T = substeps_numba.run_substeps(
+            n, dt, p.q, p.v, self.bdf2, F0, T0, self.mass, self.inertia, p.radius,
+            self._shadow_local, self._count, V, self.walls.centroid, nb.pairs, nb.reference,
+            nb.margin, self.contact_history, self.law)
+        if done:
+            cf = ContactForces(*c[:9])
+            cf.keys = c[9]
+            self.contacts = cf
+            self.force, self.torque = F, T
+            for _ in range(done):
+                self.t += dt
+            self.steps += done
+        return done
 
     # ------------------------------------------------------------ diagnostics
     def kinetic_energy(self) -> float:
