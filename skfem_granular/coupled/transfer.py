@@ -44,10 +44,12 @@ class FieldTransfer:
 
     def __init__(self, old, new, tol: float = 1.0):
         loc = PointLocator(old.mesh)
-        cells, X = loc.locate(new.sb.doflocs, tol=tol, name="new mesh nodes")
-        self._Eu = evaluation_matrix(old.sb, cells, X)
-        cells, X = loc.locate(new.pb.doflocs, tol=tol, name="new mesh vertices")
-        self._Ep = evaluation_matrix(old.pb, cells, X)
+        # numberings, not scikit-fem bases: a basis's quadrature values are not needed here
+        cells, X = loc.locate(new.numbering("scalar").doflocs, tol=tol, name="new mesh nodes")
+        self._Eu = evaluation_matrix(old.numbering("scalar"), cells, X)
+        cells, X = loc.locate(new.numbering("pressure").doflocs, tol=tol,
+                              name="new mesh vertices")
+        self._Ep = evaluation_matrix(old.numbering("pressure"), cells, X)
         self.new = new
 
     def velocity(self, u: np.ndarray) -> np.ndarray:
