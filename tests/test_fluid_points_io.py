@@ -226,6 +226,43 @@ def test_interpolation_onto_another_mesh_converges_at_order_three():
     assert err_solve[-1] < 1e-5
 
 
+def test_numberings_are_the_bases_dof_locations_without_building_a_basis():
+    """``TaylorHood.numbering`` gives what a field transfer reads of a basis, bit for bit,
+    on a mesh as built and moved (ALE), and builds no basis doing so."""
+    space = sg.TaylorHood(box(0.0, 0.0, 1.0, 1.0, 0.05, hole=HEX))
+    p = space.mesh.p
+    moved = space.moved(p + 0.01 * np.sin(7.0 * p[::-1]))
+    for sp_ in (space, moved):
+        numbered = {f: sp_.numbering(f) for f in ("scalar", "pressure")}
+        for n in numbered.values():
+            n.doflocs  # noqa: B018 - computed here, before any basis exists
+        assert not sp_.has_bases
+        for field, basis in (("scalar", sp_.sb), ("pressure", sp_.pb)):
+            n = numbered[field]
+            assert np.array_equal(n.doflocs, basis.doflocs)
+            assert np.array_equal(n.element_dofs, basis.element_dofs) and n.N == basis.N
+    with pytest.raises(ValueError, match="field = 'vector'"):
+        space.numbering("vector")
+
+
+def test_a_field_transfer_builds_no_basis_and_moves_exact_fields_exactly():
+    from skfem_granular.coupled.transfer import FieldTransfer
+
+    old = sg.TaylorHood(box(0.0, 0.0, 1.0, 1.0, 0.04))
+    new = sg.TaylorHood(box(0.0, 0.0, 1.0, 1.0, 0.03))
+    tr = FieldTransfer(old, new)
+    assert not old.has_bases and not new.has_bases
+    # a quadratic velocity and a linear pressure are P2/P1 fields: moved to round-off
+    u_old = np.empty(old.nu)
+    ux, uy = quadratic_velocity(*old.velocity_doflocs)
+    u_old[:] = np.where(old.component == 0, ux, uy)
+    ux, uy = quadratic_velocity(*new.velocity_doflocs)
+    np.testing.assert_allclose(tr.velocity(u_old), np.where(new.component == 0, ux, uy),
+                               atol=1e3 * EPS)
+    np.testing.assert_allclose(tr.pressure(linear_pressure(*old.mesh.p)),
+                               linear_pressure(*new.mesh.p), atol=1e3 * EPS)
+
+
 # output ------------------------------------------------------------------------------
 
 
@@ -241,7 +278,9 @@ def rotation():
 def test_save_writes_fields_that_meshio_reads_back(rotation, tmp_path):
     omega, flow = rotation
     path = tmp_path / "out" / "flow.vtu"
+    flow.space.release_bases()
     flow.save(path)
+    assert not flow.space.has_bases  # built for the frame, released after it
     m = meshio.read(path)
     n = flow.space.sb.N
     assert m.points.shape == (n, 3)

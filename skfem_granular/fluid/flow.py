@@ -160,7 +160,18 @@ class Flow:
         return self.space.vorticity(self.u)
 
     def save(self, path) -> None:
-        """Write velocity, pressure, speed and vorticity to a VTU file (quadratic triangles)."""
+        """Write velocity, pressure, speed and vorticity to a VTU file (quadratic triangles).
+
+        The space's scikit-fem bases are built for it and, unless they were there before,
+        released afterwards (:meth:`TaylorHood.release_bases`)."""
+        had_bases = self.space.has_bases
+        try:
+            self._write(path)
+        finally:
+            if not had_bases:
+                self.space.release_bases()
+
+    def _write(self, path) -> None:
         from ..io import write_vtu
 
         sp_ = self.space

@@ -87,6 +87,21 @@ class TaylorHood:
         return ub, ub.with_element(ElementTriP1()), ub.with_element(ElementTriP2())
 
     @property
+    def has_bases(self) -> bool:
+        """Whether the scikit-fem bases are built (see :meth:`release_bases`)."""
+        return "_bases" in self.__dict__
+
+    def release_bases(self) -> None:
+        """Forget the scikit-fem bases and what is built on them (rebuilt at the next use).
+
+        Their quadrature values are the largest arrays a space can hold (measured: ~1.4 GB
+        at 300k unknowns, more than the step's factorisation); a user of them that runs
+        once in a while (a VTU frame) releases them so that they do not stay for the
+        mesh's lifetime."""
+        for name in ("_bases", "_scalar_mass_lu"):
+            self.__dict__.pop(name, None)
+
+    @property
     def ub(self) -> Basis:
         """The velocity basis (``ElementVector(ElementTriP2())``), built at first use."""
         return self._bases[0]
