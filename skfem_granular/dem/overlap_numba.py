@@ -29,7 +29,7 @@ from .overlap import EPS, EPS_PARALLEL, TAU, OverlapGeometry
 
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
-__all__ = ["AVAILABLE", "overlap_pairs_numba", "pair_overlap"]
+__all__ = ["AVAILABLE", "overlap_pairs_numba", "pair_overlap", "pair_scratch"]
 
 
 @lazy_njit
@@ -150,7 +150,7 @@ def _principal_axis(pts, npts, out, p):
 @lazy_njit
 def pair_overlap(A, na, B, nb, out, p, Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts):
     """Overlap geometry of one pair, written to ``out[p]`` (area, cx, cy, ux, uy, length,
-    ncross); ``Sa`` ... ``pts`` are scratch arrays sized as in :func:`_kernel`
+    ncross); ``Sa`` ... ``pts`` are scratch arrays (:func:`pair_scratch`)
     (compiled code only: the compiled substep loop calls it too)."""
     rx = 0.0
     ry = 0.0
@@ -226,19 +226,18 @@ def pair_overlap(A, na, B, nb, out, p, Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts)
 
 
 @lazy_njit
+def pair_scratch(nmax):
+    """The scratch arrays of :func:`pair_overlap` for outlines of up to ``nmax`` vertices:
+    ``(Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts)``."""
+    return (np.empty((nmax, 2)), np.empty((nmax, 2)), np.empty((nmax, 2)),
+            np.empty((nmax, 2)), np.empty(nmax), np.empty(nmax), np.empty((nmax, nmax)),
+            np.empty((nmax, nmax)), np.empty(3), np.empty((4 * nmax + 4, 2)))
+
+
+@lazy_njit
 def _kernel(V, count, I, J, out):
     """out[p] = (area, cx, cy, ux, uy, length, ncross) for every pair p."""
-    nmax = V.shape[1]
-    Sa = np.empty((nmax, 2))  # scratch arrays, allocated once
-    Sb = np.empty((nmax, 2))
-    ea = np.empty((nmax, 2))
-    eb = np.empty((nmax, 2))
-    la = np.empty(nmax)
-    lb = np.empty(nmax)
-    NA = np.empty((nmax, nmax))
-    NB = np.empty((nmax, nmax))
-    acc = np.empty(3)
-    pts = np.empty((4 * nmax + 4, 2))
+    Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts = pair_scratch(V.shape[1])  # allocated once
     for p in range(I.shape[0]):
         pair_overlap(V[I[p]], count[I[p]], V[J[p]], count[J[p]], out, p,
               Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts)

@@ -251,16 +251,7 @@ def _substeps(n, dt, q, v, q_prev, v_prev, a, a_prev, dt_prev, F0, T0, mass, ine
     vp = np.empty((3, N))
     a_star = np.empty((3, N))
     g = np.empty((1, 7))
-    Sa = np.empty((nmax, 2))
-    Sb = np.empty((nmax, 2))
-    ea = np.empty((nmax, 2))
-    eb = np.empty((nmax, 2))
-    la = np.empty(nmax)
-    lb = np.empty(nmax)
-    NA = np.empty((nmax, nmax))
-    NB = np.empty((nmax, nmax))
-    acc = np.empty(3)
-    pts = np.empty((4 * nmax + 4, 2))
+    Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts = overlap_numba.pair_scratch(nmax)
     C = 0
     for step in range(n):
         w = dt / dt_prev
