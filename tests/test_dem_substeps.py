@@ -5,8 +5,10 @@
 the numpy pipeline, one substep per call. Both do the same arithmetic in the same
 order, so a dense pile (about one contact per grain, walls, Verlet rebuilds inside
 the window, a friction-limited tangential history) must come out of both the same
-up to the last bits of ``cos``/``sin``; chaos amplifies such bits, so the window is
-short (200 substeps) and the bounds are a thousand times the round-off.
+up to the last bits of ``cos``/``sin`` (on the development machine: bit for bit);
+chaos amplifies such bits, so the window is short (200 substeps) and the bounds
+(positions to 1e-12 of a grain radius, velocities and forces to 1e-9 of their
+largest) leave room for that amplification and none for a wrong term.
 """
 
 import numpy as np

@@ -240,7 +240,7 @@ def _kernel(V, count, I, J, out):
     Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts = pair_scratch(V.shape[1])  # allocated once
     for p in range(I.shape[0]):
         pair_overlap(V[I[p]], count[I[p]], V[J[p]], count[J[p]], out, p,
-              Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts)
+                     Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts)
 
 
 def overlap_pairs_numba(V: np.ndarray, count: np.ndarray, I: np.ndarray, J: np.ndarray):

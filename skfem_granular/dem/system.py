@@ -397,7 +397,8 @@ class DEMSystem:
         """Up to ``n`` substeps in :mod:`.substeps_numba`; returns how many were done."""
         p = self.particles
         F0, T0 = pipeline.reset_forces(self, self.t)
-        V = pipeline.body_vertices(self, p.q)
+        # the walls' rows; the kernel writes the particles' at every substep
+        V = np.concatenate([np.empty_like(self._shadow_local), self._wall_vertices])
         nb = self.neighbours
         done, c, F, T = substeps_numba.run_substeps(
             n, dt, p.q, p.v, self.bdf2, F0, T0, self.mass, self.inertia, p.radius,
