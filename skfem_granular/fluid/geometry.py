@@ -55,13 +55,13 @@ def scatter_pattern(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]
     indices, indptr : int32 ndarray
         The pattern, rows sorted, no duplicates.
     """
-    keys = rows.ravel().astype(np.int64) * shape[1] + cols.ravel()
-    unique, slot = np.unique(keys, return_inverse=True)
-    indices = (unique % shape[1]).astype(np.int32)
-    counts = np.bincount(unique // shape[1], minlength=shape[0])
-    indptr = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
-    # 32-bit slots halve what the compiled pass reads (the patterns stay far below 2^31)
-    return slot.astype(np.int32), indices, indptr
+    from .pattern_numba import csr_pattern
+
+    # two counting sorts (compiled): the arrays numpy.unique of the keys
+    # rows * ncols + cols with return_inverse gives, in O(n); 32-bit slots halve what
+    # the compiled assembly reads (the patterns stay far below 2^31)
+    return csr_pattern(np.ascontiguousarray(rows).ravel(), np.ascontiguousarray(cols).ravel(),
+                       int(shape[0]), int(shape[1]))
 
 
 def affine_maps(p: np.ndarray, t: np.ndarray):

@@ -324,18 +324,15 @@ class NavierStokesOperator:
                 or held[2] is not kern.pattern[0]):
             pos = None
             if A.has_canonical_format and A.shape == (self.space.nu, self.space.nu):
+                from .pattern_numba import positions_in
+
                 indices, indptr = kern.pattern
-                n = A.shape[0]
-                rows_n = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr))
-                keys_n = rows_n * n + indices
-                rows_a = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
-                keys_a = rows_a * n + A.indices
-                pos = np.searchsorted(keys_n, keys_a)
-                pos = np.minimum(pos, keys_n.size - 1)
-                if not np.array_equal(keys_n[pos], keys_a):
+                # one merge of the two sorted rows each (compiled): as searchsorted of the
+                # row-major keys, without sorting them
+                pos = np.empty(A.indices.size,
+                               dtype=np.int32 if indices.size < 2**31 - 1 else np.int64)
+                if not positions_in(indptr, indices, A.indptr, A.indices, pos):
                     pos = None
-                elif keys_n.size < 2**31 - 1:
-                    pos = pos.astype(np.int32)  # half the memory (patterns below 2^31)
             held = self._conv_positions[0] = (A.indices, A.indptr, kern.pattern[0], pos)
         return held[3]
 

@@ -67,10 +67,11 @@ class SaddlePointSolver:
     def _pressure_scale(A: sp.csr_matrix, nu: int) -> np.ndarray:
         """The diagonal of ``D``: 1 on the velocities, ``median |A_uu diagonal| / max |B^T|``
         on the pressures (``A`` canonical CSR)."""
+        from .factor_input_numba import upper_right_max
+
         diag = np.abs(A.diagonal()[:nu])
-        rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
-        upper_right = (rows < nu) & (A.indices >= nu)  # the B^T block
-        bmax = np.abs(A.data[upper_right]).max() if upper_right.any() else 1.0
+        bmax = upper_right_max(A.data, A.indices, A.indptr, nu)  # over the B^T block
+        bmax = 1.0 if bmax < 0 else bmax  # -1: no such entries
         s = (np.median(diag[diag > 0]) / bmax) if np.any(diag > 0) and bmax > 0 else 1.0
         scale = np.ones(A.shape[0])
         scale[nu:] = s

@@ -135,19 +135,40 @@ class SuperLUSolver(SaddlePointSolver):
             self._scale = self._pressure_scale(A, self.nu)  # for the pivoted factorisation
             return None
         n, nu = A.shape[0], self.nu
-        S = self._scaled(A, nu)
-        # typical velocity pivot (not the max: rigid-body rows of a coupled system are huge)
-        vmax = float(np.median(np.abs(S.diagonal()[:nu])))
-        if Mp is None:
-            reg = sp.diags(np.r_[np.zeros(nu), np.full(n - nu, self.delta * vmax)])
-        else:
-            Mp = sp.csr_matrix(Mp) * self._scale[-1] ** 2
-            reg = sp.block_diag([sp.csr_matrix((nu, nu)),
-                                 Mp * (self.delta * vmax / abs(Mp).max())])
-        S = S - reg  # the scaled copy goes as soon as the difference exists
         if perm is None:
-            return S.tocsc()
-        return _PermutedLU.transposed_input(S, perm)
+            S = self._scaled(A, nu)
+            # typical velocity pivot (not the max: rigid-body rows of a coupled system are
+            # huge); D is 1 on the velocities, so D A D has A's velocity diagonal
+            R = self._regularisation(n, float(np.median(np.abs(S.diagonal()[:nu]))), Mp)
+            return (S - R).tocsc()  # the scaled copy goes as soon as the difference exists
+        from .factor_input_numba import permuted_transpose
+
+        A = self._canonical(A)
+        self._scale = self._pressure_scale(A, nu)
+        R = self._regularisation(n, float(np.median(np.abs(A.diagonal()[:nu]))), Mp)
+        perm = np.asarray(perm, dtype=np.int64)
+        inv = np.empty_like(perm)
+        inv[perm] = np.arange(n)
+        # scaling, regularisation, permutation and transposition in three compiled passes
+        # (the arithmetic of D A D - R entry by entry, exact zeros dropped, as scipy's)
+        indptr, indices, data = permuted_transpose(A.data, A.indices, A.indptr, self._scale,
+                                                   R.data, R.indices, R.indptr, perm, inv)
+        if indptr[-1] < 2**31 - 1:
+            indptr = indptr.astype(np.int32)
+        return sp.csc_matrix((data, indices, indptr), shape=(n, n))
+
+    def _regularisation(self, n: int, vmax: float, Mp) -> sp.csr_matrix:
+        """``reg``, canonical CSR: ``delta vmax`` times the (scaled, normalised) pressure
+        mass matrix, or times the identity on the pressures without one."""
+        nu = self.nu
+        if Mp is None:
+            return sp.csr_matrix((np.full(n - nu, self.delta * vmax),
+                                  (np.arange(nu, n), np.arange(nu, n))), shape=(n, n))
+        Mp = sp.csr_matrix(Mp) * self._scale[-1] ** 2
+        R = sp.block_diag([sp.csr_matrix((nu, nu)),
+                           Mp * (self.delta * vmax / abs(Mp).max())], format="csr")
+        R.sum_duplicates()
+        return R
 
     def release(self) -> None:
         """Drop the factors and the matrix kept for refinement (the scale stays)."""
@@ -244,16 +265,6 @@ class _PermutedLU:
         self.perm = perm
         self.lu = spla.splu(CT, permc_spec="NATURAL", diag_pivot_thresh=0.0,
                             options=dict(SymmetricMode=True))
-
-    @staticmethod
-    def transposed_input(A: sp.csr_matrix, perm: np.ndarray) -> sp.csc_matrix:
-        """SuperLU's input for ``A`` (CSR) in the order ``perm``: ``(P A P^T)^T`` in CSC."""
-        rows = A[perm]  # row gather: cheap for CSR
-        inv = np.empty_like(perm)
-        inv[perm] = np.arange(perm.size)
-        CT = sp.csc_matrix((rows.data, inv[rows.indices], rows.indptr), shape=A.shape[::-1])
-        CT.sort_indices()
-        return CT
 
     @property
     def L(self) -> sp.csc_matrix:

@@ -1,0 +1,165 @@
+"""Compiled construction of the sparsity patterns a new mesh needs (one pass each).
+
+A remesh builds the CSR patterns of the Taylor-Hood blocks and the maps that scatter
+element matrices into them. Sorting every element entry's ``(row, column)`` key
+(``numpy.unique``) costs ``O(n log n)`` and a few arrays of ``n`` 64-bit keys; these
+kernels give the same arrays with two counting sorts (``O(n)``), which matters at a
+million unknowns, where a remesh built its patterns in seconds.
+
+- :func:`csr_pattern`: the pattern of entries scattered to ``(rows, cols)`` and each
+  entry's value slot, as ``numpy.unique`` of the keys ``rows * ncols + cols`` with
+  ``return_inverse`` gives them;
+- :func:`vector_pattern`: the pattern of a 2-component P2 field's element matrices
+  from the scalar one (:func:`~skfem_granular.fluid.convection.element_pattern`);
+- :func:`positions_in`: where the entries of one sorted pattern sit in a wider one.
+
+Compiled with numba at the first call (:func:`~skfem_granular._jit.lazy_njit`,
+``cache=True``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import lazy_njit
+
+
+@lazy_njit  # numba.njit(cache=True) at the first call
+def csr_pattern(rows, cols, nrows, ncols):  # pragma: no cover (compiled)
+    """The CSR pattern of the entries ``(rows[k], cols[k])`` and each entry's slot in it.
+
+    Parameters
+    ----------
+    rows, cols : (n,) integer ndarray
+        Row and column of every entry (duplicates allowed), within ``nrows``, ``ncols``.
+    nrows, ncols : int
+        Shape of the matrix.
+
+    Returns
+    -------
+    slot : (n,) int32 ndarray
+        Position of entry ``k`` in ``indices`` (equal entries share it).
+    indices : (nnz,) int32 ndarray
+        Column of every distinct entry, rows in order, columns sorted within a row.
+    indptr : (nrows + 1,) int32 ndarray
+        Row pointers.
+    """
+    n = rows.size
+    # counting sort by column, then a stable one by row: entries in (row, column) order
+    start = np.zeros(ncols + 1, dtype=np.int64)
+    for k in range(n):
+        start[cols[k] + 1] += 1
+    for c in range(ncols):
+        start[c + 1] += start[c]
+    by_col = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        c = cols[k]
+        by_col[start[c]] = k
+        start[c] += 1
+    rstart = np.zeros(nrows + 1, dtype=np.int64)
+    for k in range(n):
+        rstart[rows[k] + 1] += 1
+    for r in range(nrows):
+        rstart[r + 1] += rstart[r]
+    order = np.empty(n, dtype=np.int64)
+    for m in range(n):
+        k = by_col[m]
+        r = rows[k]
+        order[rstart[r]] = k
+        rstart[r] += 1
+    slot = np.empty(n, dtype=np.int32)
+    indices = np.empty(n, dtype=np.int32)
+    counts = np.zeros(nrows + 1, dtype=np.int64)
+    nnz = 0
+    last_r = -1
+    last_c = -1
+    for m in range(n):
+        k = order[m]
+        r = rows[k]
+        c = cols[k]
+        if r != last_r or c != last_c:
+            indices[nnz] = c
+            nnz += 1
+            counts[r + 1] += 1
+            last_r = r
+            last_c = c
+        slot[k] = nnz - 1
+    indptr = np.empty(nrows + 1, dtype=np.int32)
+    total = 0
+    for r in range(nrows + 1):
+        total += counts[r]
+        indptr[r] = total
+    return slot, indices[:nnz].copy(), indptr
+
+
+@lazy_njit
+def vector_pattern(edofs, sslot, sind, sptr):  # pragma: no cover (compiled)
+    """The pattern of the 12 x 12 element matrices of a 2-component P2 field.
+
+    Vector DOF ``2 k + c`` is component ``c`` of scalar DOF ``k``; row ``2 k + c`` holds
+    columns ``2 j, 2 j + 1`` for each column ``j`` of scalar row ``k``, in order.
+
+    Parameters
+    ----------
+    edofs : (nel, nloc) integer ndarray
+        Scalar DOFs of every element.
+    sslot, sind, sptr : ndarray
+        The scalar pattern (:func:`csr_pattern` of the ``nloc x nloc`` couplings, entry
+        ``(e, i, j)`` at ``e * nloc**2 + i * nloc + j``).
+
+    Returns
+    -------
+    slot : (nel * 4 nloc**2,) int32 ndarray
+        Value slot of local entry ``(e, i, c, j, d)`` (row ``2 edofs[e, i] + c``, column
+        ``2 edofs[e, j] + d``), in that order.
+    indices, indptr : int32 ndarray
+        The pattern.
+    """
+    nel, nloc = edofs.shape
+    ns = sptr.size - 1
+    indptr = np.empty(2 * ns + 1, dtype=np.int64)
+    for k in range(ns):
+        indptr[2 * k] = 4 * np.int64(sptr[k])
+        indptr[2 * k + 1] = 4 * np.int64(sptr[k]) + 2 * (np.int64(sptr[k + 1]) - sptr[k])
+    indptr[2 * ns] = 4 * np.int64(sptr[ns])
+    indices = np.empty(indptr[2 * ns], dtype=np.int32)
+    for k in range(ns):
+        for c in range(2):
+            base = indptr[2 * k + c] - 2 * np.int64(sptr[k])
+            for m in range(sptr[k], sptr[k + 1]):
+                indices[base + 2 * m] = 2 * sind[m]
+                indices[base + 2 * m + 1] = 2 * sind[m] + 1
+    slot = np.empty(nel * 4 * nloc * nloc, dtype=np.int32)
+    q = 0
+    for e in range(nel):
+        for i in range(nloc):
+            k = edofs[e, i]
+            for c in range(2):
+                row = indptr[2 * k + c] - 2 * np.int64(sptr[k])
+                for j in range(nloc):
+                    s = row + 2 * np.int64(sslot[(e * nloc + i) * nloc + j])
+                    slot[q] = s
+                    slot[q + 1] = s + 1
+                    q += 2
+    return slot, indices, indptr.astype(np.int32)
+
+
+@lazy_njit
+def positions_in(indptr_n, indices_n, indptr_a, indices_a, pos):  # pragma: no cover
+    """Write into ``pos`` where each entry of pattern ``a`` sits in pattern ``n``.
+
+    Both patterns have the same rows and sorted columns within a row. Returns False
+    (``pos`` then incomplete) when an entry of ``a`` is not in ``n``.
+    """
+    nrows = indptr_a.size - 1
+    for r in range(nrows):
+        q = indptr_n[r]
+        end = indptr_n[r + 1]
+        for m in range(indptr_a[r], indptr_a[r + 1]):
+            c = indices_a[m]
+            while q < end and indices_n[q] < c:
+                q += 1
+            if q == end or indices_n[q] != c:
+                return False
+            pos[m] = q
+    return True
