@@ -149,7 +149,7 @@ class SuperLUSolver(SaddlePointSolver):
         perm = np.asarray(perm, dtype=np.int64)
         inv = np.empty_like(perm)
         inv[perm] = np.arange(n)
-        # scaling, regularisation, permutation and transposition in three compiled passes
+        # scaling, regularisation, permutation and transposition in one compiled pass
         # (the arithmetic of D A D - R entry by entry, exact zeros dropped, as scipy's)
         indptr, indices, data = permuted_transpose(A.data, A.indices, A.indptr, self._scale,
                                                    R.data, R.indices, R.indptr, perm, inv)
