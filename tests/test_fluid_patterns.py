@@ -126,3 +126,38 @@ def test_superlu_input_is_scipys_bit_for_bit(with_mass):
     x = rng.standard_normal(n)
     solver.factorize(A, nu, ordering=perm, **({"Mp": Mp} if with_mass else {}))
     np.testing.assert_allclose(solver.solve(A @ x), x, rtol=1e-8, atol=1e-10)
+
+
+def test_saddle_matrix_is_that_of_scipys_block_stacking():
+    from helpers import annulus
+
+    import skfem_granular as sg
+    from skfem_granular.fluid.boundary import DirichletData
+    from skfem_granular.fluid.operator import NavierStokesOperator
+
+    space = TaylorHood(annulus(1e-3, 2e-3, 16, 32, (2e-4) ** 2))
+    op = NavierStokesOperator(space, sg.Fluid(1000.0, 1e-3),
+                              DirichletData(space, {"inner": (0.0, 1e-2), "outer": (0.0, 0.0)}),
+                              convection=True)
+    rng = np.random.default_rng(7)
+    moved = space.moved(1.01 * space.mesh.p + 2e-5)  # stretched and shifted
+    for o in (op, op.moved(moved)):
+        x = rng.standard_normal(o.space.N)
+        w = rng.standard_normal(o.space.nu)
+        J = o.jacobian(x, 1.5e3, w_mesh=w)
+        # the construction through scipy's sparse algebra, block by block
+        kern = o.space.convection
+        N = kern.jacobian(x[: o.space.nu]) - kern.jacobian(w, newton=False)
+        N.data *= 1000.0
+        A = o.velocity_block(1.5e3) + N
+        want = sp.bmat([[A, o.space.B.T], [o.space.B, None]], format="csr")
+        want.sum_duplicates()  # B's stored entries kept, as scipy's sum keeps A + N's nonzeros
+        J.sum_duplicates()
+        np.testing.assert_array_equal(J.indptr, want.indptr)
+        np.testing.assert_array_equal(J.indices, want.indices)
+        np.testing.assert_array_equal(J.data, want.data)
+        # and the linear part alone
+        L = o.linear_matrix(o.velocity_block(1.5e3))
+        ref = sp.bmat([[o.velocity_block(1.5e3), o.space.B.T], [o.space.B, None]], format="csr")
+        np.testing.assert_array_equal((L - ref).data, 0.0)
+        assert L.nnz == ref.nnz

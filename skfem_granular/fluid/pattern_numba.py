@@ -163,3 +163,39 @@ def positions_in(indptr_n, indices_n, indptr_a, indices_a, pos):  # pragma: no c
                 return False
             pos[m] = q
     return True
+
+
+@lazy_njit
+def stack_saddle(a_data, a_ind, a_ptr, b_data, b_ind, b_ptr, shift,
+                 c_data, c_ind, c_ptr):  # pragma: no cover (compiled)
+    """CSR arrays of ``[[A, B], [C]]``: row ``i`` of ``A`` followed by row ``i`` of ``B``
+    (columns shifted by ``shift``), then the rows of ``C`` (as wide as the whole).
+
+    Every row's entries in stored order, as ``scipy.sparse.hstack`` and ``vstack`` of CSR
+    blocks give them. Returns ``(data, indices, indptr)``, ``indptr`` int64.
+    """
+    na = a_ptr.size - 1
+    nc = c_ptr.size - 1
+    nnz = (a_ptr[na] - a_ptr[0]) + (b_ptr[na] - b_ptr[0]) + (c_ptr[nc] - c_ptr[0])
+    data = np.empty(nnz, dtype=np.float64)
+    indices = np.empty(nnz, dtype=np.int32)
+    indptr = np.empty(na + nc + 1, dtype=np.int64)
+    q = 0
+    for i in range(na):
+        indptr[i] = q
+        for m in range(a_ptr[i], a_ptr[i + 1]):
+            data[q] = a_data[m]
+            indices[q] = a_ind[m]
+            q += 1
+        for m in range(b_ptr[i], b_ptr[i + 1]):
+            data[q] = b_data[m]
+            indices[q] = b_ind[m] + shift
+            q += 1
+    for i in range(nc):
+        indptr[na + i] = q
+        for m in range(c_ptr[i], c_ptr[i + 1]):
+            data[q] = c_data[m]
+            indices[q] = c_ind[m]
+            q += 1
+    indptr[na + nc] = q
+    return data, indices, indptr
