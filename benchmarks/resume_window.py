@@ -1,0 +1,102 @@
+"""Benchmark: a window of a long run, continued from its checkpoint.
+
+The 1000-grain collapses run for hours; what a change to the code does to them is
+measured on a few of their steps. This script copies a run's checkpoint into a
+scratch folder (the run itself is not touched), resumes it there and simulates
+``--steps`` steps, timing the resume (the first mesh's set-up) and every step (wall
+and CPU), with the run's phase timers, its remeshes and factorisations and the DOFs.
+The same checkpoint under two versions of the code gives the same steps (the
+collapse is deterministic), so their costs compare step for step; run the versions
+one after the other (``PYTHONPATH`` at a checkout of each) and compare ratios.
+
+Usage::
+
+    python benchmarks/resume_window.py out/collapse_matrix_n1000/loose_immersed_core0.9_s0 \\
+        --steps 12 --out benchmarks/results/resume_window_loose.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def commit_of(path: Path) -> str:
+    """The commit of the checkout that ``skfem_granular`` is imported from."""
+    r = subprocess.run(["git", "-C", str(path), "rev-parse", "--short", "HEAD"],
+                       capture_output=True, text=True)
+    return r.stdout.strip() or "unknown"
+
+
+def window(run: Path, steps: int) -> dict:
+    """Resume a copy of ``run``'s checkpoint and time ``steps`` steps."""
+    import skfem_granular
+    from skfem_granular.simulation import Simulation
+
+    with tempfile.TemporaryDirectory(prefix="resume_window_") as tmp:
+        folder = Path(tmp) / run.name
+        folder.mkdir()
+        shutil.copy2(run / "checkpoint.npz", folder / "checkpoint.npz")
+        w0, c0 = time.perf_counter(), time.process_time()
+        sim = Simulation.resume(folder)
+        resume = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0}
+        stepper = sim.stepper
+        before = dict(getattr(stepper, "factor_counts", {}))
+        remeshes0 = getattr(stepper, "remeshes", 0)
+        per_step, dofs = [], []
+        w_last, c_last = time.perf_counter(), time.process_time()
+        for _t, _state in sim.evolve():
+            w, c = time.perf_counter(), time.process_time()
+            per_step.append({"wall_s": w - w_last, "cpu_s": c - c_last})
+            w_last, c_last = w, c
+            dofs.append(int(stepper.space.N))
+            if len(per_step) >= steps:
+                break
+        after = dict(getattr(stepper, "factor_counts", {}))
+        return {
+            "run": run.name,
+            "code": str(Path(skfem_granular.__file__).resolve().parents[1]),
+            "commit": commit_of(Path(skfem_granular.__file__).resolve().parents[1]),
+            "steps": len(per_step),
+            "resume": resume,
+            "steps_wall_s": sum(s["wall_s"] for s in per_step),
+            "steps_cpu_s": sum(s["cpu_s"] for s in per_step),
+            "per_step": per_step,
+            "dofs": dofs,
+            "remeshes": getattr(stepper, "remeshes", 0) - remeshes0,
+            "factor_counts": {k: after.get(k, 0) - before.get(k, 0) for k in after},
+            "phases_s": {k: float(v) for k, v in sim.timings.items()},
+            "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        }
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("run", type=Path, help="a run's output folder with checkpoint.npz")
+    ap.add_argument("--steps", type=int, default=12)
+    ap.add_argument("--out", type=Path, default=None,
+                    help="JSON file the record is appended to (default: print only)")
+    args = ap.parse_args(argv)
+    if not (args.run / "checkpoint.npz").exists():
+        sys.exit(f"run: {args.run} has no checkpoint.npz")
+    if args.steps < 1:
+        sys.exit(f"--steps = {args.steps}: must be at least 1")
+    rec = window(args.run, args.steps)
+    print(json.dumps({k: v for k, v in rec.items() if k not in ("per_step", "dofs")}))
+    if args.out is not None:
+        records = json.loads(args.out.read_text())["records"] if args.out.exists() else []
+        args.out.write_text(json.dumps({"benchmark": "resume_window",
+                                        "records": records + [rec]}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
