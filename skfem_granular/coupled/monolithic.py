@@ -263,6 +263,9 @@ class MonolithicCoupling(RigidParticles):
         diag = np.zeros(self.nz)
         diag[self.rigid_slice] = a0 * self._inertia_diag()
         Jz = (Jz + sp.diags(diag)).tocsr()
+        # sorted in place: the solver keeps a canonical matrix as it is, where it would
+        # sort a copy and hold both while SuperLU factorises (480 MB at 1000 grains)
+        Jz.sum_duplicates()
         sp_ = self.space
         pf = self.E[sp_.nu:, self.nu_z:].nonzero()[0]
         Mp = sp_.Mp[np.sort(pf)][:, np.sort(pf)]
