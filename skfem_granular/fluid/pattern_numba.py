@@ -45,28 +45,8 @@ def csr_pattern(rows, cols, nrows, ncols):  # pragma: no cover (compiled)
         Row pointers.
     """
     n = rows.size
-    # counting sort by column, then a stable one by row: entries in (row, column) order
-    start = np.zeros(ncols + 1, dtype=np.int64)
-    for k in range(n):
-        start[cols[k] + 1] += 1
-    for c in range(ncols):
-        start[c + 1] += start[c]
-    by_col = np.empty(n, dtype=np.int64)
-    for k in range(n):
-        c = cols[k]
-        by_col[start[c]] = k
-        start[c] += 1
-    rstart = np.zeros(nrows + 1, dtype=np.int64)
-    for k in range(n):
-        rstart[rows[k] + 1] += 1
-    for r in range(nrows):
-        rstart[r + 1] += rstart[r]
-    order = np.empty(n, dtype=np.int64)
-    for m in range(n):
-        k = by_col[m]
-        r = rows[k]
-        order[rstart[r]] = k
-        rstart[r] += 1
+    # a counting sort by column, then a stable one by row: entries in (row, column) order
+    order = _stable_by(rows, nrows, _stable_by(cols, ncols, np.arange(n)))
     slot = np.empty(n, dtype=np.int32)
     indices = np.empty(n, dtype=np.int32)
     counts = np.zeros(nrows + 1, dtype=np.int64)
@@ -90,6 +70,24 @@ def csr_pattern(rows, cols, nrows, ncols):  # pragma: no cover (compiled)
         total += counts[r]
         indptr[r] = total
     return slot, indices[:nnz].copy(), indptr
+
+
+@lazy_njit
+def _stable_by(keys, nkeys, order):  # pragma: no cover (compiled)
+    """``order`` (entry numbers) stably sorted by ``keys`` of the entries, ``0 <= keys <
+    nkeys``: a counting sort."""
+    start = np.zeros(nkeys + 1, dtype=np.int64)
+    for m in range(order.size):
+        start[keys[order[m]] + 1] += 1
+    for c in range(nkeys):
+        start[c + 1] += start[c]
+    out = np.empty(order.size, dtype=np.int64)
+    for m in range(order.size):
+        k = order[m]
+        c = keys[k]
+        out[start[c]] = k
+        start[c] += 1
+    return out
 
 
 @lazy_njit
