@@ -48,7 +48,8 @@ def window(run: Path, steps: int) -> dict:
         shutil.copy2(run / "checkpoint.npz", folder / "checkpoint.npz")
         w0, c0 = time.perf_counter(), time.process_time()
         sim = Simulation.resume(folder)
-        resume = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0}
+        resume = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
+                  "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
         stepper = sim.stepper
         before = dict(getattr(stepper, "factor_counts", {}))
         remeshes0 = getattr(stepper, "remeshes", 0)
