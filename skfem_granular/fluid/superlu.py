@@ -143,8 +143,7 @@ class SuperLUSolver(SaddlePointSolver):
             return (S - R).tocsc()  # the scaled copy goes as soon as the difference exists
         from .factor_input_numba import permuted_transpose
 
-        A = self._canonical(A)
-        self._scale = self._pressure_scale(A, nu)
+        self._scale = self._pressure_scale(A, nu)  # A: canonical (factorize made it so)
         R = self._regularisation(n, float(np.median(np.abs(A.diagonal()[:nu]))), Mp)
         perm = np.asarray(perm, dtype=np.int64)
         inv = np.empty_like(perm)
