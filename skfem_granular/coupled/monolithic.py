@@ -32,7 +32,12 @@ before that lag grows past a fraction of the element size
 The corrector is a chord iteration on the factorised BDF2-Stokes matrix; when it
 stalls (:class:`~skfem_granular.fluid.newton.ChordStall`, the rule of the fluid's
 integrator too) the coupled Newton Jacobian is factorised at the iterate and the
-iteration continues on it (later steps with the same ``a0`` reuse it). GMRES
+iteration continues on it (later steps with the same ``a0`` reuse it). A
+factorisation made anew (a new mesh after a remesh, a new ``a0``) is of the Newton
+Jacobian at the step's first iterate when the one it replaces was one
+(:data:`KEEP_NEWTON_OPERATOR`): a flow that needed the Jacobian on the last mesh
+needs it on the next, and factorising the linear operator first costs a whole
+factorisation more. GMRES
 preconditioned by the held factorisation instead was measured on the collapse's
 contact phase: 12-25 iterations per correction, as costly as a new SuperLU
 factorisation at 20k unknowns.
@@ -52,6 +57,11 @@ from ..fluid.factor_cache import FactorCache
 from ..fluid.linsolve import make_solver
 from ..fluid.newton import ChordStall, chord_converged, newton_iterate
 from .rigid import RigidParticles
+
+#: A factorisation made anew (new mesh, new ``a0``) is of the Newton Jacobian at the first
+#: iterate when the last one was of a Newton Jacobian (``False``: of the linear BDF2-Stokes
+#: operator always, the stall rule refreshing it as needed).
+KEEP_NEWTON_OPERATOR = True
 
 
 class MonolithicCoupling(RigidParticles):
@@ -363,7 +373,11 @@ class MonolithicCoupling(RigidParticles):
         rhs_u = -rho * (self.space.M @ hist_u)
         rigid_rhs = self._rigid_rhs(a1 * xi_n + (a2 * xi_prev if dt_prev is not None else 0.0),
                                     F_ext, T_ext)
-        self.factors.operator(a0)
+        # a new factorisation: the Newton Jacobian at the first iterate if the last one was
+        newton_first = (KEEP_NEWTON_OPERATOR and self.factors.a0 != a0
+                        and self.factors.newton_operator and not self.op.linear)
+        if not newton_first:
+            self.factors.operator(a0)
         current = {"A_uu": None, "rhs_u": rhs_u}
 
         def refresh_with(g):
@@ -382,6 +396,8 @@ class MonolithicCoupling(RigidParticles):
         z = self._first_iterate(u_n if u_guess is None else u_guess, p_guess,
                                 xi_n if xi_guess is None else xi_guess)
         scale = max(float(np.abs(u_n).max()), float(np.abs(xi_n[:2]).max()), 1e-12)
+        if newton_first:
+            self.factorize_jacobian(self.E @ z + x_D, a0)  # booked as assembly, factorisation
         t0 = time.perf_counter()
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve

@@ -222,6 +222,8 @@ class CoupledStepper:
         built = getattr(mesh, "mesh", mesh)
         self.coupling = build_coupling(self.scene, built, dem, centers=centers,
                                        terms=self.terms, assembly=self.assembly)
+        if old is not None:  # the chord operator's kind carries over to the new mesh
+            self.coupling.factors.newton_operator = old.factors.newton_operator
         self.reference_space = self.coupling.space
         self.mesh_centers = dem.positions.copy() if centers is None else np.array(centers)
         self.mesh_angles = dem.angles.copy() if angles is None else np.array(angles)
@@ -607,6 +609,7 @@ class CoupledStepper:
                              "rejections": self.rejections, "euler_steps": self.euler_steps,
                              **self.factor_counts,
                              "chord_extra_iterations": self.coupling.factors.extra_iterations,
+                             "newton_operator": int(self.coupling.factors.newton_operator),
                              **{"remesh_reasons." + k: v
                                 for k, v in self.remesh_reasons.items()}}}
         self.dem.neighbours.invalidate()
@@ -646,6 +649,10 @@ class CoupledStepper:
                 st.coupling.factorize_jacobian(data["factor_x"], data["factor_a0"])
         # what the writer's factorisation had cost beyond fresh ones (ChordStall's ledger)
         st.coupling.factors.extra_iterations = data["counters"].get("chord_extra_iterations", 0)
+        # whether the writer's next factorisation would be of a Newton Jacobian (a checkpoint
+        # written before this was kept: as the factorisation rebuilt above says)
+        st.coupling.factors.newton_operator = bool(data["counters"].get(
+            "newton_operator", st.coupling.factors.newton_operator))
         if st.ale and st.state.nodes_n is not None:  # the mesh where the last step left it
             st.coupling.move(st.reference_space.moved(st.state.nodes_n),
                              data["coupling_centers"], None)

@@ -49,6 +49,9 @@ class FactorCache:
         self.refreshes = 0  # factorisations of another system (factorize_system)
         #: chord iterations spent on the held factorisation beyond a fresh one's (ChordStall)
         self.extra_iterations = 0
+        #: whether the factorisation held (or, after a remesh, the last one on the previous
+        #: mesh) is of a Newton Jacobian rather than of the linear operator
+        self.newton_operator = False
 
     def operator(self, a0: float) -> sp.csr_matrix:
         """Factorise for ``a0`` unless that is the factorisation held; returns ``A_uu``."""
@@ -63,6 +66,7 @@ class FactorCache:
             self.a0 = a0
             self.factorizations += 1
             self.extra_iterations = 0
+            self.newton_operator = False
         return self.A_uu
 
     def factorize_system(self, a0: float, system: tuple) -> sp.csr_matrix:
@@ -76,10 +80,13 @@ class FactorCache:
         self.timings["factorization"] += time.perf_counter() - t0
         self.refreshes += 1
         self.extra_iterations = 0
+        self.newton_operator = True
         self.A_uu, self.a0 = A_uu, a0
         return A_uu
 
     def clear(self) -> None:
-        """Forget the factorisation: the next :meth:`operator` call factorises anew."""
+        """Forget the factorisation: the next :meth:`operator` call factorises anew
+        (:attr:`newton_operator` is kept: what kind the next factorisation is, is the
+        owner's to decide)."""
         self.a0 = None
         self.extra_iterations = 0
