@@ -609,7 +609,6 @@ class CoupledStepper:
                              "rejections": self.rejections, "euler_steps": self.euler_steps,
                              **self.factor_counts,
                              "chord_extra_iterations": self.coupling.factors.extra_iterations,
-                             "newton_operator": int(self.coupling.factors.newton_operator),
                              **{"remesh_reasons." + k: v
                                 for k, v in self.remesh_reasons.items()}}}
         self.dem.neighbours.invalidate()
@@ -649,10 +648,6 @@ class CoupledStepper:
                 st.coupling.factorize_jacobian(data["factor_x"], data["factor_a0"])
         # what the writer's factorisation had cost beyond fresh ones (ChordStall's ledger)
         st.coupling.factors.extra_iterations = data["counters"].get("chord_extra_iterations", 0)
-        # whether the writer's next factorisation would be of a Newton Jacobian (a checkpoint
-        # written before this was kept: as the factorisation rebuilt above says)
-        st.coupling.factors.newton_operator = bool(data["counters"].get(
-            "newton_operator", st.coupling.factors.newton_operator))
         if st.ale and st.state.nodes_n is not None:  # the mesh where the last step left it
             st.coupling.move(st.reference_space.moved(st.state.nodes_n),
                              data["coupling_centers"], None)

@@ -85,8 +85,8 @@ class FactorCache:
         return A_uu
 
     def clear(self) -> None:
-        """Forget the factorisation: the next :meth:`operator` call factorises anew
-        (:attr:`newton_operator` is kept: what kind the next factorisation is, is the
-        owner's to decide)."""
+        """Forget the factorisation (and its kind): the next :meth:`operator` call
+        factorises anew."""
         self.a0 = None
         self.extra_iterations = 0
+        self.newton_operator = False
