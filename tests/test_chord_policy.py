@@ -9,6 +9,7 @@ from helpers import box, regular_polygon
 
 import skfem_granular as sg
 import skfem_granular.coupled.monolithic as monolithic
+import skfem_granular.coupled.stepper as stepper
 import skfem_granular.fluid.newton as newton
 from skfem_granular.scene import Scene
 from skfem_granular.simulation import Simulation
@@ -162,3 +163,51 @@ def test_chord_stall_names_the_rule_that_asks_for_a_refresh(monkeypatch):
     monkeypatch.setattr(newton, "STALL_RULE", "rate")
     assert _observed(newton.ChordStall(15), [1.0, 0.5], 0.4) == "rate"
     assert _observed(newton.ChordStall(15), [1.0, 0.2], 0.1) is None
+
+
+
+
+#: The library's bound (the tests below change it and set it back).
+CARRY_STEPS = stepper.NEWTON_CARRY_STEPS
+
+
+def _collapse_remeshes(monkeypatch, keep: bool = True, carry_steps: int | None = None):
+    """The paper's collapse to 40 ms: for every remesh of a mesh that held a Newton
+    Jacobian, ``(steps the mesh lived, linear factorisations, Jacobian factorisations)`` of
+    that step."""
+    monkeypatch.setattr(monolithic, "KEEP_NEWTON_OPERATOR", keep)
+    monkeypatch.setattr(stepper, "NEWTON_CARRY_STEPS",
+                        CARRY_STEPS if carry_steps is None else carry_steps)
+    sc = Scene.bundled("collapse")
+    sim = Simulation(replace(sc, output_dir=None, time=replace(sc.time, t_end=0.04)))
+    st, events = sim.stepper, []
+
+    def now():
+        return (st.remeshes, dict(st.factor_counts), st.coupling.factors.newton_operator,
+                st.state.since_remesh)
+
+    before = now()
+    for _ in sim.evolve():
+        if st.remeshes > before[0] and before[2]:
+            counts = st.factor_counts
+            events.append((before[3], *(counts[k] - before[1][k]
+                                        for k in ("factorizations", "jacobian_refreshes"))))
+        before = now()
+    return events
+
+
+def test_short_lived_mesh_hands_its_newton_jacobian_on(monkeypatch):
+    """Once the collapse's corrector needed a Newton Jacobian, a remesh of a mesh that lived
+    at most :data:`~skfem_granular.coupled.stepper.NEWTON_CARRY_STEPS` steps factorises the
+    new mesh's Jacobian at the step's first iterate, not the BDF2-Stokes operator; a
+    longer-lived mesh's successor, or any with
+    :data:`~skfem_granular.coupled.monolithic.KEEP_NEWTON_OPERATOR` off, starts on the linear
+    operator."""
+    always = _collapse_remeshes(monkeypatch, carry_steps=10**6)  # every remesh hands it on
+    assert always and all(lin == 0 and jac >= 1 for _, lin, jac in always), always
+    default = _collapse_remeshes(monkeypatch)
+    assert any(lived > CARRY_STEPS for lived, _, _ in default), default
+    for lived, lin, jac in default:
+        assert (lin == 0 and jac >= 1) if lived <= CARRY_STEPS else lin == 1
+    off = _collapse_remeshes(monkeypatch, keep=False, carry_steps=10**6)
+    assert off and all(lin == 1 for _, lin, _ in off), off

@@ -33,11 +33,10 @@ The corrector is a chord iteration on the factorised BDF2-Stokes matrix; when it
 stalls (:class:`~skfem_granular.fluid.newton.ChordStall`, the rule of the fluid's
 integrator too) the coupled Newton Jacobian is factorised at the iterate and the
 iteration continues on it (later steps with the same ``a0`` reuse it). A
-factorisation made anew (a new mesh after a remesh, a new ``a0``) is of the Newton
-Jacobian at the step's first iterate when the one it replaces was one
-(:data:`KEEP_NEWTON_OPERATOR`): a flow that needed the Jacobian on the last mesh
-needs it on the next, and factorising the linear operator first costs a whole
-factorisation more. GMRES
+factorisation made anew for a new ``a0`` is of the Newton Jacobian at the step's
+first iterate when the one it replaces was one (:data:`KEEP_NEWTON_OPERATOR`), and so
+is a new mesh's when the stepper carries the kind over (a mesh replaced within a few
+steps: :data:`~skfem_granular.coupled.stepper.NEWTON_CARRY_STEPS`). GMRES
 preconditioned by the held factorisation instead was measured on the collapse's
 contact phase: 12-25 iterations per correction, as costly as a new SuperLU
 factorisation at 20k unknowns.
@@ -58,8 +57,8 @@ from ..fluid.linsolve import make_solver
 from ..fluid.newton import ChordStall, chord_converged, newton_iterate
 from .rigid import RigidParticles
 
-#: A factorisation made anew (new mesh, new ``a0``) is of the Newton Jacobian at the first
-#: iterate when the last one was of a Newton Jacobian (``False``: of the linear BDF2-Stokes
+#: A factorisation made anew (new ``a0``; a new mesh the stepper marks so) is of the Newton
+#: Jacobian at the first iterate when the last one was (``False``: of the linear BDF2-Stokes
 #: operator always, the stall rule refreshing it as needed).
 KEEP_NEWTON_OPERATOR = True
 

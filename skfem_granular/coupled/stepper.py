@@ -98,6 +98,13 @@ VELOCITY_FLOOR = 1e-6
 #: Backward-Euler steps after the last step with a contact force (module notes).
 EULER_AFTER_CONTACT = 2
 
+#: A new mesh's first factorisation is of the Newton Jacobian (when the mesh it replaces
+#: held one) if that mesh lived at most this many steps: where the flow outpaces the
+#: meshes, the linear operator would stall on the first step and be refreshed at once;
+#: on meshes that live longer a Jacobian of the first iterate goes stale within a few
+#: steps and is refreshed anyway (measured: benchmarks page).
+NEWTON_CARRY_STEPS = 4
+
 class SimulationError(RuntimeError):
     """A run stopped early; the history and the last good state were written."""
 
@@ -222,7 +229,8 @@ class CoupledStepper:
         built = getattr(mesh, "mesh", mesh)
         self.coupling = build_coupling(self.scene, built, dem, centers=centers,
                                        terms=self.terms, assembly=self.assembly)
-        if old is not None:  # the chord operator's kind carries over to the new mesh
+        if old is not None and self.state.since_remesh <= NEWTON_CARRY_STEPS:
+            # a short-lived mesh's Newton Jacobian: the new mesh starts on one too
             self.coupling.factors.newton_operator = old.factors.newton_operator
         self.reference_space = self.coupling.space
         self.mesh_centers = dem.positions.copy() if centers is None else np.array(centers)
