@@ -261,6 +261,12 @@ def test_a_field_transfer_builds_no_basis_and_moves_exact_fields_exactly():
                                atol=1e3 * EPS)
     np.testing.assert_allclose(tr.pressure(linear_pressure(*old.mesh.p)),
                                linear_pressure(*new.mesh.p), atol=1e3 * EPS)
+    # the vertices are located once, as the P2 nodes they are: the same values as a
+    # location of the vertices on their own, bit for bit
+    cells, X = PointLocator(old.mesh).locate(new.mesh.p, tol=1.0)
+    p_old = np.cos(3.0 * old.mesh.p[0]) * old.mesh.p[1]
+    alone = evaluation_matrix(old.numbering("pressure"), cells, X) @ p_old
+    assert np.array_equal(tr.pressure(p_old), alone)
 
 
 # output ------------------------------------------------------------------------------

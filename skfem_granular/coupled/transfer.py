@@ -45,10 +45,15 @@ class FieldTransfer:
     def __init__(self, old, new, tol: float = 1.0):
         loc = PointLocator(old.mesh)
         # numberings, not scikit-fem bases: a basis's quadrature values are not needed here
-        cells, X = loc.locate(new.numbering("scalar").doflocs, tol=tol, name="new mesh nodes")
+        nodes = new.numbering("scalar").doflocs
+        cells, X = loc.locate(nodes, tol=tol, name="new mesh nodes")
         self._Eu = evaluation_matrix(old.numbering("scalar"), cells, X)
-        cells, X = loc.locate(new.numbering("pressure").doflocs, tol=tol,
-                              name="new mesh vertices")
+        vertices = new.numbering("pressure").doflocs
+        nv = vertices.shape[1]
+        if np.array_equal(nodes[:, :nv], vertices):  # P2 numbers the vertices first: found
+            cells, X = cells[:nv], X[:, :nv]  # (each point is located on its own)
+        else:
+            cells, X = loc.locate(vertices, tol=tol, name="new mesh vertices")
         self._Ep = evaluation_matrix(old.numbering("pressure"), cells, X)
         self.new = new
 
@@ -95,7 +100,7 @@ def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project
     s.du_prev = None if s.du_prev is None else tr_prev.velocity(s.du_prev)
     if project is not None:
         s.u_n = divergence_free_projection(project, s.u_n)
-        if s.u_prev is not None:
-            op_prev = project if old_prev is None else project.moved(new_prev)
-            s.u_prev = divergence_free_projection(op_prev, s.u_prev)
+        if s.u_prev is not None:  # on the t_{n-1} configuration: its M and B only
+            s.u_prev = divergence_free_projection(project, s.u_prev,
+                                                  space=None if old_prev is None else new_prev)
     s.x = np.concatenate([s.u_n, np.zeros(new.N - new.nu) if s.p_n is None else s.p_n])

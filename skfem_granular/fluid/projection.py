@@ -25,7 +25,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 
-def divergence_free_projection(op, u: np.ndarray) -> np.ndarray:
+def divergence_free_projection(op, u: np.ndarray, space=None) -> np.ndarray:
     """``u`` projected onto the discretely divergence-free velocities of ``op``'s mesh.
 
     Parameters
@@ -35,6 +35,10 @@ def divergence_free_projection(op, u: np.ndarray) -> np.ndarray:
         in ``u``) define the projection.
     u : (nu,) ndarray
         Velocity DOFs.
+    space : TaylorHood, optional
+        ``op``'s mesh moved elsewhere (``op.space.moved(p)``): project on that
+        configuration, with ``op``'s Dirichlet DOFs (only its ``M`` and ``B`` are
+        built, not a moved operator).
 
     Returns
     -------
@@ -46,16 +50,17 @@ def divergence_free_projection(op, u: np.ndarray) -> np.ndarray:
     ValueError
         When ``u`` does not have ``op.space.nu`` finite entries.
     """
-    sp_ = op.space
+    sp_ = op.space if space is None else space
     u = np.asarray(u, dtype=float)
     if u.shape != (sp_.nu,) or not np.all(np.isfinite(u)):
         raise ValueError(f"u: must be {sp_.nu} finite velocity DOFs, got shape {u.shape}")
     nu = sp_.nu
     free_u = op.free[op.free < nu]
     free_p = op.free[op.free >= nu] - nu
-    B = sp.csr_matrix(sp_.B)
+    B, M = sp_.blocks(("B", "M"))
+    B = sp.csr_matrix(B)
     Bf = B[free_p][:, free_u]
-    D = sp_.M.diagonal()[free_u]
+    D = M.diagonal()[free_u]
     S = (Bf @ sp.diags(1.0 / D) @ Bf.T).tocsc()
     q = spla.splu(S).solve((B @ u)[free_p])
     v = u.copy()

@@ -192,6 +192,18 @@ class TaylorHood:
             return self._moved_geometry[name]
         return self.reference_blocks.moved(self.mesh.p, check=False, parts=(name,))[name]
 
+    def blocks(self, names: tuple[str, ...]) -> tuple[sp.csr_matrix, ...]:
+        """The geometric blocks ``names`` (of ``M``, ``K_symmetric``, ``K_laplace``,
+        ``B``), built together in one pass of just those on a moved space that has not
+        built its blocks yet (the same matrices as :attr:`M`, :attr:`B`, ... bit for bit:
+        each is accumulated on its own, in the same order); on any other space the
+        blocks themselves."""
+        if (self.assembly == "scikit-fem" or self.reference is self
+                or "_moved_geometry" in self.__dict__):
+            return tuple(getattr(self, name) for name in names)
+        built = self.reference_blocks.moved(self.mesh.p, check=False, parts=names)
+        return tuple(built[name] for name in names)
+
     # unknowns per element, for fill-reducing orderings -------------------
     @cached_property
     def incidence(self) -> sp.csr_matrix:
