@@ -1,6 +1,7 @@
 """The divergence-free projection applied to fields interpolated onto a new mesh."""
 
 import numpy as np
+import pytest
 from helpers import annulus
 
 import skfem_granular as sg
@@ -64,6 +65,8 @@ def test_projection_on_a_moved_configuration_needs_no_moved_operator():
     assert "_moved_geometry" not in moved.__dict__  # K and the affine maps not built
     assert np.array_equal(v, divergence_free_projection(op.moved(space.moved(moved.mesh.p)), u))
     assert np.abs(moved.B @ v).max() <= 1e-10 * np.abs(moved.B @ u).max()
+    with pytest.raises(ValueError, match="names: 'C' is not a geometric block"):
+        moved.blocks(("M", "C"))
 
 
 def test_ale_jacobian_is_the_derivative_of_the_ale_residual():

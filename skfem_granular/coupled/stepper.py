@@ -105,6 +105,7 @@ EULER_AFTER_CONTACT = 2
 #: steps and is refreshed anyway (measured: benchmarks page).
 NEWTON_CARRY_STEPS = 4
 
+
 class SimulationError(RuntimeError):
     """A run stopped early; the history and the last good state were written."""
 

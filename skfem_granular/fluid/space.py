@@ -193,11 +193,31 @@ class TaylorHood:
         return self.reference_blocks.moved(self.mesh.p, check=False, parts=(name,))[name]
 
     def blocks(self, names: tuple[str, ...]) -> tuple[sp.csr_matrix, ...]:
-        """The geometric blocks ``names`` (of ``M``, ``K_symmetric``, ``K_laplace``,
-        ``B``), built together in one pass of just those on a moved space that has not
-        built its blocks yet (the same matrices as :attr:`M`, :attr:`B`, ... bit for bit:
-        each is accumulated on its own, in the same order); on any other space the
-        blocks themselves."""
+        """Some geometric blocks, without building the others on a moved space.
+
+        Parameters
+        ----------
+        names : tuple of str
+            Of ``"M"``, ``"K_symmetric"``, ``"K_laplace"``, ``"B"``.
+
+        Returns
+        -------
+        tuple of scipy.sparse.csr_matrix
+            The blocks in the order asked: on a moved space that has not built its
+            blocks yet, from one pass over the triangles of just those (the same
+            matrices as :attr:`M`, :attr:`B`, ... bit for bit: each is accumulated on
+            its own, in the same order); on any other space the blocks themselves.
+
+        Raises
+        ------
+        ValueError
+            For a name not among the four.
+        """
+        known = ("M", "K_symmetric", "K_laplace", "B")
+        unknown = [n for n in names if n not in known]
+        if unknown:
+            raise ValueError(f"names: {unknown[0]!r} is not a geometric block; "
+                             f"allowed: {', '.join(known)}")
         if (self.assembly == "scikit-fem" or self.reference is self
                 or "_moved_geometry" in self.__dict__):
             return tuple(getattr(self, name) for name in names)
