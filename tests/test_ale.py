@@ -136,14 +136,18 @@ def test_bdf2_order_two_on_a_moving_mesh(pattern, levels, convection):
     assert np.all(np.abs(orders[-2:] - 2.0) < 0.2), (orders, d)
 
 
-@pytest.mark.parametrize("slide", [False, True])
-def test_uniform_flow_stays_uniform_around_a_particle_moving_with_it(slide):
+@pytest.mark.parametrize("slide, relax", [(False, 0.0), (True, 0.0), (False, 20.0)])
+def test_uniform_flow_stays_uniform_around_a_particle_moving_with_it(slide, relax,
+                                                                     monkeypatch):
     """Particle-driven mesh motion (outline rigid, the rest by the stiffened harmonic
-    extension, wall vertices fixed or sliding along the walls): a hexagon carried by the
-    uniform flow (1, 0.5) through a closed box for 100 steps, travelling 1.5 of its radii:
-    the velocity stays uniform to round-off."""
+    extension, wall vertices fixed or sliding along the walls, poor triangles relaxed or
+    not): a hexagon carried by the uniform flow (1, 0.5) through a closed box for 100
+    steps, travelling 1.5 of its radii: the velocity stays uniform to round-off."""
+    from skfem_granular.coupled import mesh_motion
     from skfem_granular.coupled.mesh_motion import MeshMotion, mesh_quality
     from skfem_granular.dem import Polygon
+
+    monkeypatch.setattr(mesh_motion, "RELAX_ANGLE", relax)
 
     hexagon = Polygon.regular(6, 0.1, center=(0.4, 0.4)).vertices
     mesh = box(0.0, 0.0, 1.0, 1.0, 0.002, hole=hexagon)
@@ -204,3 +208,38 @@ def test_wall_vertices_slide_along_their_walls():
             assert np.all(moved[0, under] - p[0, under] > 0.05)  # dragged along
     assert quality[True][0] > 20.0 and quality[True][1] > 0.5
     assert quality[False][1] < 0.0  # inverted: fixed walls had to remesh well before this
+
+
+
+def test_relaxation_lifts_poor_triangles_and_keeps_outlines_and_walls(monkeypatch):
+    """A hexagon slid 0.6 radii along the floor at a gap of 0.3 radii, the floor's
+    vertices fixed, shears the triangles between them (smallest angle 11.4 degrees);
+    relaxing the interior vertices near triangles below 20 degrees (``RELAX_ANGLE``)
+    lifts it to 14.3 (measured), moves no outline or wall vertex, and is off by default
+    (the harmonic positions as they were). The relaxed positions are a continuous
+    function of the poses: a pose changed by ``eps`` moves them by O(eps)."""
+    from skfem_granular.coupled import mesh_motion
+    from skfem_granular.coupled.mesh_motion import MeshMotion, mesh_quality
+    from skfem_granular.dem import Polygon
+
+    hexagon = Polygon.regular(6, 0.1, center=(0.3, 0.13)).vertices
+    mesh = box(0.0, 0.0, 1.0, 0.5, 0.002, hole=hexagon)
+    nodes = np.unique(mesh.facets[:, mesh.boundaries["particle0"]])
+    motion = MeshMotion(mesh, [nodes], np.array([[0.3], [0.13], [0.0]]), slide_walls=False)
+    pose = np.array([[0.36], [0.13], [0.0]])
+    assert mesh_motion.RELAX_ANGLE == 0.0
+    harmonic = motion.positions(pose)
+    monkeypatch.setattr(mesh_motion, "RELAX_ANGLE", 20.0)
+    relaxed = motion.positions(pose)
+    before = mesh_quality(harmonic, mesh.t, motion.area_ref)
+    after = mesh_quality(relaxed, mesh.t, motion.area_ref)
+    assert before[0] < 12.0 and after[0] > 14.0 and after[1] > 0.3, (before, after)
+    fixed = np.union1d(nodes, mesh.boundary_nodes())
+    assert np.array_equal(relaxed[:, fixed], harmonic[:, fixed])
+    moved = np.abs(relaxed - harmonic).max(axis=0) > 0
+    assert 0 < moved.sum() < 0.1 * moved.size  # only near the poor triangles
+    steps = []
+    for eps in (1e-6, 5e-7):
+        nudged = motion.positions(pose + np.array([[eps], [0.0], [0.0]]))
+        steps.append(np.abs(nudged - relaxed).max())
+    assert 1.5 < steps[0] / steps[1] < 2.5 and steps[0] < 10 * 1e-6, steps

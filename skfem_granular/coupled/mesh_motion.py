@@ -24,6 +24,14 @@ import scipy.sparse.linalg as spla
 
 from .._jit import lazy_njit
 
+#: Relaxation of poor triangles (degrees; 0: off, the default). With ``RELAX_ANGLE > 0``
+#: every interior vertex within two rings of a triangle whose smallest angle is below it
+#: moves towards the mean of its neighbours, by the fraction the triangle falls short
+#: (``(RELAX_ANGLE - angle) / RELAX_ANGLE``, the largest over the triangles near it): a
+#: continuous function of the poses, so the mesh velocity stays the derivative of the
+#: vertex positions (:meth:`MeshMotion.positions`).
+RELAX_ANGLE = 0.0
+
 
 class MeshMotion:
     """Vertex positions of a mesh for the particles' current poses.
@@ -114,7 +122,39 @@ class MeshMotion:
         else:
             flat = d.ravel()  # x displacements, then y (a view: d is C-contiguous)
             flat[f] = lu.solve(-(A_fb @ flat[b]))
-        return self.p_ref + d
+        p = self.p_ref + d
+        return p if RELAX_ANGLE <= 0.0 else self._relaxed(p, RELAX_ANGLE)
+
+    def _relaxed(self, p: np.ndarray, angle: float) -> np.ndarray:
+        """``p`` with the interior vertices near triangles below ``angle`` degrees moved
+        towards their neighbours' mean (:data:`RELAX_ANGLE`)."""
+        from meshing.quality import angles  # meshing: imported when a mesh moves
+
+        t = self.t
+        short = np.clip((angle - angles(p, t).min(axis=0)) / angle, 0.0, 1.0)
+        if not short.any():
+            return p
+        nv = p.shape[1]
+        w = np.zeros(nv)
+        for k in range(3):  # the vertices of a poor triangle
+            np.maximum.at(w, t[k], short)
+        if not hasattr(self, "_edges"):
+            edges = np.concatenate([t[[0, 1]], t[[1, 2]], t[[2, 0]]], axis=1)
+            A = sp.csr_matrix((np.ones(2 * edges.shape[1]),
+                               (np.r_[edges[0], edges[1]], np.r_[edges[1], edges[0]])),
+                              shape=(nv, nv))
+            A.data[:] = 1.0  # each neighbour once
+            interior = np.zeros((2, nv), dtype=bool)
+            interior[0, self.free[0]] = interior[1, self.free[1]] = True
+            self._edges = (edges, A, np.asarray(A.sum(axis=1)).ravel(),
+                           interior[0] & interior[1])
+        edges, A, degree, interior = self._edges
+        ring = w.copy()  # and their neighbours
+        np.maximum.at(ring, edges[0], w[edges[1]])
+        np.maximum.at(ring, edges[1], w[edges[0]])
+        ring[~interior] = 0.0  # outlines and walls stay where the motion puts them
+        mean = (A @ p.T).T / degree
+        return p + ring * (mean - p)
 
 
 def sliding_wall_nodes(mesh, particle_nodes) -> tuple[np.ndarray, np.ndarray]:
