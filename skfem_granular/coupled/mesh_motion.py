@@ -9,7 +9,9 @@ codes: the diffusion coefficient of a triangle is ``1 / area``, so small
 elements near the particles move almost rigidly and the large ones far away
 take up the deformation. The stiffness matrix is factorised once per mesh (and
 component, when walls slide); each motion is then one triangular solve per
-component.
+component. Optionally (:data:`RELAX_ANGLE`, off by default) the interior vertices
+near triangles below a given angle then move part of the way towards their
+neighbours' mean.
 
 :func:`mesh_quality` measures what a motion did to the triangles (smallest
 angle, smallest signed-area ratio to the built mesh), for the remeshing rule of
@@ -105,7 +107,8 @@ class MeshMotion:
                                                      np.concatenate(cols))), shape=(nv, nv))
 
     def positions(self, poses: np.ndarray) -> np.ndarray:
-        """Vertex positions ``(2, nv)`` with every particle at ``poses`` ``(3, K)``."""
+        """Vertex positions ``(2, nv)`` with every particle at ``poses`` ``(3, K)`` (the
+        harmonic extension, relaxed near poor triangles when :data:`RELAX_ANGLE` > 0)."""
         poses = np.asarray(poses, dtype=float)
         d = np.zeros_like(self.p_ref)
         n, k, r = self._outline, self._owner, self._arm  # every outline moved rigidly
