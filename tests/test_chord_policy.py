@@ -165,8 +165,6 @@ def test_chord_stall_names_the_rule_that_asks_for_a_refresh(monkeypatch):
     assert _observed(newton.ChordStall(15), [1.0, 0.2], 0.1) is None
 
 
-
-
 #: The library's bound (the tests below change it and set it back).
 CARRY_STEPS = stepper.NEWTON_CARRY_STEPS
 

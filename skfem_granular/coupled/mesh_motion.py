@@ -54,6 +54,7 @@ class MeshMotion:
     def __init__(self, mesh, particle_nodes, poses_ref, slide_walls: bool = True):
         self.p_ref = np.asarray(mesh.p, dtype=float)
         self.t = mesh.t
+        self._mesh = mesh  # its edges (``mesh.facets``) when the relaxation needs them
         self.poses_ref = np.array(poses_ref, dtype=float).reshape(3, -1)
         self.particle_nodes = [np.asarray(n, dtype=np.int64) for n in particle_nodes]
         # all outline vertices at once: which particle each belongs to, and its arm there
@@ -142,11 +143,10 @@ class MeshMotion:
         for k in range(3):  # the vertices of a poor triangle
             np.maximum.at(w, t[k], short)
         if not hasattr(self, "_edges"):
-            edges = np.concatenate([t[[0, 1]], t[[1, 2]], t[[2, 0]]], axis=1)
+            edges = self._mesh.facets  # every edge once
             A = sp.csr_matrix((np.ones(2 * edges.shape[1]),
                                (np.r_[edges[0], edges[1]], np.r_[edges[1], edges[0]])),
                               shape=(nv, nv))
-            A.data[:] = 1.0  # each neighbour once
             interior = np.zeros((2, nv), dtype=bool)
             interior[0, self.free[0]] = interior[1, self.free[1]] = True
             self._edges = (edges, A, np.asarray(A.sum(axis=1)).ravel(),
