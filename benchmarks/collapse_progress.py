@@ -1,0 +1,143 @@
+"""Benchmark report: where the long runs of a collapse matrix stand, read from their files.
+
+The 1000-grain immersed collapses run over many sittings (``collapse_matrix.py --to-rest
+--checkpoint-every 25`` continues a stopped run). This script reads the ``history.csv`` of
+every run folder under ``ROOT`` as it is (finished or not; a last row still being written
+is left out) and writes, per run, how far it has come and its series so far (run-out,
+horizontal and vertical kinetic energy, front Froude number against ``t / tau_c``,
+:func:`skfem_granular.collapse.collapse_series`), plus a figure of the run-out curves:
+runs still going drawn solid up to where they are, finished runs of ``--matrix`` (the
+dry ones) dashed.
+
+Usage::
+
+    python benchmarks/collapse_progress.py out/collapse_matrix_n1000 --n 1000 \\
+        --matrix benchmarks/results/collapse_matrix_n1000.json \\
+        --out benchmarks/results/collapse_progress_n1000.json \\
+        --figure docs/figures/collapse_n1000_immersed_progress.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from collapse_matrix import packing  # noqa: E402
+
+RUN_NAME = re.compile(r"^(?P<state>dense|loose)_(?P<medium>dry|immersed)"
+                      r"(?:_core(?P<core>[0-9.]+))?_s(?P<seed>\d+)$")
+
+
+def complete_rows(path: Path, dest: Path) -> int:
+    """Copy ``path`` to ``dest`` without a last line that is still being written; the
+    number of data rows copied."""
+    raw = path.read_bytes()
+    end = raw.rfind(b"\n")
+    raw = raw[: end + 1] if end >= 0 else b""
+    dest.write_bytes(raw)
+    return max(raw.count(b"\n") - 1, 0)
+
+
+def progress(folder: Path, n: int, every: int) -> dict | None:
+    """How far the run in ``folder`` has come and its series so far (None: no rows yet)."""
+    from skfem_granular.collapse import collapse_series, column_scene, history_columns
+
+    m = RUN_NAME.match(folder.name)
+    if m is None or not (folder / "history.csv").exists():
+        return None
+    pk = packing(n, m["state"], int(m["seed"]))
+    with tempfile.TemporaryDirectory(prefix="collapse_progress_") as tmp:
+        copy = Path(tmp) / "history.csv"
+        if complete_rows(folder / "history.csv", copy) == 0:
+            return None
+        cols = history_columns(copy)
+    rows = np.unique(np.r_[np.arange(0, cols["t"].size, every), cols["t"].size - 1])
+    cols = {k: v[rows] for k, v in cols.items()}
+    immersed = m["medium"] == "immersed"
+    domain = column_scene(pk, fluid=immersed,
+                          core_ratio=float(m["core"]) if immersed else 0.8).domain
+    s = collapse_series(cols, pk, domain)
+    finished = (folder / "rest.json").exists() or (
+        (folder / "summary.json").exists()
+        and json.loads((folder / "summary.json").read_text()).get("status") == "completed")
+    return {"run": folder.name, "state": m["state"], "medium": m["medium"],
+            "core_ratio": float(m["core"]) if m["core"] else None, "seed": int(m["seed"]),
+            "finished": finished, "t_end": float(cols["t"][-1]),
+            "t_end_over_tau": float(s["t_over_tau"][-1]), "rows_every": every,
+            "series": {k: np.asarray(s[k]).tolist()
+                       for k in ("t_over_tau", "runout", "E_x", "E_y", "froude")}}
+
+
+def figure(records: list, matrix: list, path: Path) -> None:
+    """Run-out curves: the runs read here solid, the finished runs of the matrix dashed."""
+    from skfem_granular.collapse.plots import plot_runout_curves
+
+    colour = {"dense": "C0", "loose": "C3"}
+    curves, styles = {}, {}
+    for r in matrix:
+        label = f"{r['state']} {r['medium']}, seed {r['seed']} (to rest)"
+        curves[label] = (r["series"]["t_over_tau"], r["series"]["runout"])
+        styles[label] = "--"
+    for r in records:
+        where = "to rest" if r["finished"] else f"so far, {r['t_end_over_tau']:.1f} tau_c"
+        label = f"{r['state']} {r['medium']}, seed {r['seed']} ({where})"
+        curves[label] = (r["series"]["t_over_tau"], r["series"]["runout"])
+        styles[label] = "-"
+    ax = plot_runout_curves(curves, styles=styles)
+    for line in ax.get_lines():
+        state = line.get_label().split()[0]
+        line.set_color(colour.get(state, "k"))
+        if "immersed" not in line.get_label():
+            line.set_alpha(0.5)
+    ax.legend(fontsize=7)
+    fig = ax.figure
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("root", type=Path, help="the matrix's run folders (out/collapse_matrix_<tag>)")
+    ap.add_argument("--n", type=int, required=True, help="grains per column")
+    ap.add_argument("--media", nargs="+", default=["immersed"], help="which runs to read")
+    ap.add_argument("--every", type=int, default=5, help="read every k-th row of a history")
+    ap.add_argument("--matrix", type=Path, help="results/collapse_matrix_<tag>.json: its "
+                    "finished dry runs are drawn beside")
+    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--figure", type=Path)
+    args = ap.parse_args(argv)
+    if not args.root.is_dir():
+        sys.exit(f"root: {args.root} is not a folder")
+    if args.every < 1:
+        sys.exit(f"--every = {args.every}: must be at least 1")
+    records = []
+    for folder in sorted(p for p in args.root.iterdir() if p.is_dir()):
+        m = RUN_NAME.match(folder.name)
+        if m is None or m["medium"] not in args.media:
+            continue
+        rec = progress(folder, args.n, args.every)
+        if rec is not None:
+            records.append(rec)
+            print(f"{rec['run']}: t = {rec['t_end']:.4f} s ({rec['t_end_over_tau']:.2f} tau_c), "
+                  f"run-out {rec['series']['runout'][-1]:.3f}"
+                  + (" (finished)" if rec["finished"] else ""), flush=True)
+    matrix = []
+    if args.matrix is not None:
+        matrix = [r for r in json.loads(args.matrix.read_text())["runs"]
+                  if r["medium"] == "dry" and "series" in r]
+    args.out.write_text(json.dumps({"benchmark": "collapse_progress", "root": str(args.root),
+                                    "grains": args.n, "runs": records}, indent=1) + "\n")
+    if args.figure is not None:
+        figure(records, matrix, args.figure)
+
+
+if __name__ == "__main__":
+    main()
