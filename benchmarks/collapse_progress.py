@@ -7,14 +7,20 @@ is left out) and writes, per run, how far it has come and its series so far (run
 horizontal and vertical kinetic energy, front Froude number against ``t / tau_c``,
 :func:`skfem_granular.collapse.collapse_series`), plus a figure of the run-out curves:
 runs still going drawn solid up to where they are, finished runs of ``--matrix`` (the
-dry ones) dashed.
+dry ones) dashed. For immersed runs it also reads the excess pore pressure along the base
+(0.02 d_mean above the floor, :func:`skfem_granular.collapse.excess_pressure` relative to
+the still fluid at the tank's top right corner, over ``(rho_p - rho_f) g H0``) in every
+flow frame saved after the release, with its mean over the column's foot (``d_max / 2``
+to ``L0 - d_max / 2``; points inside grain cores left out), and draws those lines
+(``--pressure-figure``).
 
 Usage::
 
     python benchmarks/collapse_progress.py out/collapse_matrix_n1000 --n 1000 \\
         --matrix benchmarks/results/collapse_matrix_n1000.json \\
         --out benchmarks/results/collapse_progress_n1000.json \\
-        --figure docs/figures/collapse_n1000_immersed_progress.png
+        --figure docs/figures/collapse_n1000_immersed_progress.png \\
+        --pressure-figure docs/figures/collapse_n1000_immersed_pressure.png
 """
 
 from __future__ import annotations
@@ -47,7 +53,12 @@ def complete_rows(path: Path, dest: Path) -> int:
 
 def progress(folder: Path, n: int, every: int) -> dict | None:
     """How far the run in ``folder`` has come and its series so far (None: no rows yet)."""
-    from skfem_granular.collapse import collapse_series, column_scene, history_columns
+    from skfem_granular.collapse import (
+        collapse_series,
+        column_scene,
+        history_columns,
+        time_scale,
+    )
 
     m = RUN_NAME.match(folder.name)
     if m is None or not (folder / "history.csv").exists():
@@ -67,12 +78,66 @@ def progress(folder: Path, n: int, every: int) -> dict | None:
     finished = (folder / "rest.json").exists() or (
         (folder / "summary.json").exists()
         and json.loads((folder / "summary.json").read_text()).get("status") == "completed")
+    tau = time_scale(pk)
     return {"run": folder.name, "state": m["state"], "medium": m["medium"],
             "core_ratio": float(m["core"]) if m["core"] else None, "seed": int(m["seed"]),
             "finished": finished, "t_end": float(cols["t"][-1]),
-            "t_end_over_tau": float(s["t_over_tau"][-1]), "rows_every": every,
+            "t_end_over_tau": float(s["t_over_tau"][-1]), "tau_c": tau, "rows_every": every,
             "series": {k: np.asarray(s[k]).tolist()
-                       for k in ("t_over_tau", "runout", "E_x", "E_y", "froude")}}
+                       for k in ("t_over_tau", "runout", "E_x", "E_y", "froude")},
+            "pressure": base_pressure(folder, pk) if immersed else []}
+
+
+def base_pressure(folder: Path, pk) -> list:
+    """Excess pore pressure along the base in the flow frames saved after the release."""
+    import meshio
+
+    from skfem_granular.collapse import excess_pressure, line_points, reference_point
+    from skfem_granular.io import read_pvd
+
+    if not (folder / "flow.pvd").exists():
+        return []
+    frames = [(t, f) for t, f in read_pvd(folder / "flow.pvd") if t > 0.0]
+    if not frames:
+        return []
+    X = meshio.read(frames[0][1]).points
+    box = (X[:, 0].min(), X[:, 1].min(), X[:, 0].max(), X[:, 1].max())  # the tank
+    ref = reference_point(box, pk.d_max)
+    scale = (pk.density - 1000.0) * 9.81 * pk.height
+    P = line_points(0.5 * pk.d_max, box[2] - 0.5 * pk.d_max, 0.02 * pk.d_mean)
+    foot = P[0] <= pk.width - 0.5 * pk.d_max
+    out = []
+    for t, f in frames:
+        p = excess_pressure(f, P, ref) / scale
+        out.append({"t": float(t), "frame": Path(f).name,
+                    "foot_mean": float(np.nanmean(p[foot])),
+                    "x_over_L0": (P[0] / pk.width).tolist(),
+                    "base": [None if not np.isfinite(v) else float(v) for v in p]})
+    return out
+
+
+def pressure_figure(records: list, path: Path) -> None:
+    """Base pressure lines of the immersed runs, colour by packing, style by frame."""
+    from skfem_granular.collapse.plots import plot_pressure_lines
+
+    lines, styles, x = {}, {}, None
+    for r in records:
+        frames = r.get("pressure", [])
+        for k, fr in enumerate(frames):
+            label = f"{r['state']}, t = {fr['t'] / r['tau_c']:.2f} tau_c"
+            lines[label] = np.array([np.nan if v is None else v for v in fr["base"]])
+            colour = "C0" if r["state"] == "dense" else "C3"
+            styles[label] = colour + ("-", "--", ":", "-.")[k % 4]
+            x = np.asarray(fr["x_over_L0"])
+    if not lines:
+        return
+    fig = plot_pressure_lines(x, lines, ylabel=r"base: $(p - p_{ref}) / ((\rho_p - \rho_f) g H_0)$",
+                              styles=styles)
+    fig.axes[0].set_xlabel("x / L0")
+    fig.axes[0].set_xlim(0.0, min(2.5, float(x.max())))  # the flow; the tank's far part is still
+    fig.axes[0].legend(fontsize=6, ncol=2)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
 
 
 def figure(records: list, matrix: list, path: Path) -> None:
@@ -113,6 +178,7 @@ def main(argv=None) -> None:
                     "finished dry runs are drawn beside")
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--figure", type=Path)
+    ap.add_argument("--pressure-figure", type=Path)
     args = ap.parse_args(argv)
     if not args.root.is_dir():
         sys.exit(f"root: {args.root} is not a folder")
@@ -129,6 +195,9 @@ def main(argv=None) -> None:
             print(f"{rec['run']}: t = {rec['t_end']:.4f} s ({rec['t_end_over_tau']:.2f} tau_c), "
                   f"run-out {rec['series']['runout'][-1]:.3f}"
                   + (" (finished)" if rec["finished"] else ""), flush=True)
+            for fr in rec["pressure"]:
+                print(f"  {fr['frame']}: t = {fr['t']:.4f} s, base pressure over the foot "
+                      f"{fr['foot_mean']:+.4f}", flush=True)
     matrix = []
     if args.matrix is not None:
         matrix = [r for r in json.loads(args.matrix.read_text())["runs"]
@@ -137,6 +206,8 @@ def main(argv=None) -> None:
                                     "grains": args.n, "runs": records}, indent=1) + "\n")
     if args.figure is not None:
         figure(records, matrix, args.figure)
+    if args.pressure_figure is not None:
+        pressure_figure(records, args.pressure_figure)
 
 
 if __name__ == "__main__":
