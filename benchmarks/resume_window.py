@@ -94,9 +94,11 @@ def main(argv=None) -> None:
     rec = window(args.run, args.steps)
     print(json.dumps({k: v for k, v in rec.items() if k not in ("per_step", "dofs")}))
     if args.out is not None:
-        records = json.loads(args.out.read_text())["records"] if args.out.exists() else []
-        args.out.write_text(json.dumps({"benchmark": "resume_window",
-                                        "records": records + [rec]}, indent=1) + "\n")
+        # a file of another form (an interleaved comparison's "calls") keeps what it holds
+        data = json.loads(args.out.read_text()) if args.out.exists() else {}
+        data.setdefault("benchmark", "resume_window")
+        data["records"] = data.get("records", []) + [rec]
+        args.out.write_text(json.dumps(data, indent=1) + "\n")
 
 
 if __name__ == "__main__":
