@@ -214,7 +214,6 @@ def test_wall_vertices_slide_along_their_walls():
     assert quality[False][1] < 0.0  # inverted: fixed walls had to remesh well before this
 
 
-
 def test_relaxation_lifts_poor_triangles_and_keeps_outlines_and_walls(monkeypatch):
     """A hexagon slid 0.6 radii along the floor at a gap of 0.3 radii, the floor's
     vertices fixed, shears the triangles between them (smallest angle 11.4 degrees);
