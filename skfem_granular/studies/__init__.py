@@ -17,7 +17,13 @@ Two studies:
     analytic Faxen value for the *circle*, so they include the polygonal
     outline's error.
 
-A third, on a moving case, has its own module: :mod:`.settling` (the
+Many collapses of a granular column (loose/dense x dry/immersed x core ratio x
+seed) are a study of their own: :mod:`.collapse_run` (:class:`CollapseRun`,
+:func:`plan_collapse`, :func:`execute_collapse`: one run, continued from its
+checkpoint when it was cut off) and :mod:`.collapse` (:func:`run_collapse_study`
+on an executor, :func:`summarise_collapses`: mean and spread over seeds).
+
+A further one, on a moving case, has its own module: :mod:`.settling` (the
 sedimentation checks, check 7: the settling disk of check 2, its maximum particle Reynolds number
 and settling time over outline resolution, grading, time step, remesh
 threshold and mesh motion) and :mod:`.settling_plots`; it runs with
@@ -48,12 +54,15 @@ Modules (each imports only those above it):
 - :mod:`.tables`: :func:`write_tables`; :mod:`.plots`: the figures
   (:func:`all_plots`);
 - :mod:`.driver`: :func:`run_study`, :class:`StudyResult`, :func:`load_records`,
-  the default executor.
+  the default executor (:func:`local_pool`);
+- :mod:`.collapse_run`, :mod:`.collapse`: the collapse study (above).
 """
 
 from .analysis import analyse, fit_order, orders, pareto_front, sweet_spot
+from .collapse import CollapseStudy, run_collapse_study, summarise_collapses
+from .collapse_run import CollapseRun, cached_packing, execute_collapse, plan_collapse
 from .definitions import COLUMNS, FAXEN, SCENE, STUDIES, Run, faxen_drag, plan
-from .driver import StudyResult, load_records, run_study
+from .driver import StudyResult, load_records, local_pool, run_study
 from .meshes import mirror_symmetric, renumbered
 from .plots import STYLE, all_plots, plot_convergence, plot_fig2, plot_pareto
 from .tables import write_tables
@@ -61,6 +70,8 @@ from .worker import execute
 
 __all__ = [
     "COLUMNS",
+    "CollapseRun",
+    "CollapseStudy",
     "FAXEN",
     "SCENE",
     "STUDIES",
@@ -69,19 +80,25 @@ __all__ = [
     "StudyResult",
     "all_plots",
     "analyse",
+    "cached_packing",
     "execute",
+    "execute_collapse",
     "faxen_drag",
     "fit_order",
     "load_records",
+    "local_pool",
     "mirror_symmetric",
     "orders",
     "pareto_front",
     "plan",
+    "plan_collapse",
     "plot_convergence",
     "plot_fig2",
     "plot_pareto",
     "renumbered",
+    "run_collapse_study",
     "run_study",
+    "summarise_collapses",
     "sweet_spot",
     "write_tables",
 ]

@@ -70,7 +70,7 @@ def run_study(study: str, out_dir, *, smoke: bool = False, executor: Executor | 
     computed, failed = [], {}
     own = None
     if todo and executor is None:
-        own = executor = _local_pool(workers)
+        own = executor = local_pool(workers)
     try:
         # no executor only when there is nothing to do
         futs = {} if executor is None else {executor.submit(execute, study, r): r for r in todo}
@@ -96,7 +96,7 @@ def run_study(study: str, out_dir, *, smoke: bool = False, executor: Executor | 
     return StudyResult(study, out_dir, rows, computed, failed, files)
 
 
-def _local_pool(workers: int) -> Executor:
+def local_pool(workers: int) -> Executor:
     """The default executor: ``workers`` forkserver processes, a fresh one per run
     (so that each run's peak memory is its own)."""
     import multiprocessing as mp

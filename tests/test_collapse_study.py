@@ -1,0 +1,160 @@
+"""The collapse study: runs of the loose/dense x dry/immersed matrix on an executor.
+
+References: the records of one run are the same numbers whichever executor ran it (this
+process, a local process pool, a Dask cluster: the runs are deterministic); a run read
+back is not run again (its cost file counts one process); the summary is the sample mean
+and standard deviation over the seeds (numpy); the run-out a record reports is the one
+:func:`~skfem_granular.collapse.collapse_series` reads from the run's saved history; the
+front is never faster than Ritter's inviscid dam break, ``(L - L0) / L0 <= 2 a t / tau_c``;
+a run stopped at rest has its kinetic energy below ``stop_ratio`` of its peak.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from skfem_granular.collapse import collapse_series, column_scene, history_columns
+from skfem_granular.studies import (
+    CollapseRun,
+    cached_packing,
+    execute_collapse,
+    plan_collapse,
+    run_collapse_study,
+)
+
+#: two dry 30-grain collapses of 0.5 tau_c (DEM only: about a second each)
+DRY = dict(t_end_tau=0.5, checkpoint_every=50)
+
+
+@pytest.fixture(scope="module")
+def packings(tmp_path_factory):
+    """The columns, prepared once for the module (dense, seeds 0 and 1)."""
+    where = tmp_path_factory.mktemp("packings")
+    for seed in (0, 1):
+        cached_packing(30, "dense", seed, where)
+    return where
+
+
+@pytest.fixture(scope="module")
+def inline(packings, tmp_path_factory):
+    runs = plan_collapse(30, states=["dense"], media=["dry"], seeds=[0, 1], **DRY)
+    return runs, run_collapse_study(runs, tmp_path_factory.mktemp("inline"), packings=packings)
+
+
+def _numbers(rec):
+    """A record without its cost (CPU, wall, memory: the machine's, not the run's)."""
+    return {k: v for k, v in rec.items()
+            if k not in ("cpu_s", "wall_s", "phases_s", "peak_mb", "processes")}
+
+
+def test_plan_is_the_matrix_with_one_folder_per_run():
+    runs = plan_collapse(30, cores=[0.7, 0.9], seeds=[0, 1])
+    assert len(runs) == 2 * 2 * (1 + 2)  # seeds x states x (dry + two core ratios)
+    keys = [r.key for r in runs]
+    assert len(set(keys)) == len(keys)
+    assert keys[:4] == ["dense_dry_s0", "dense_immersed_core0.7_s0",
+                        "dense_immersed_core0.9_s0", "loose_dry_s0"]
+    assert all(r.core_ratio == 1.0 for r in runs if r.medium == "dry")
+
+
+def test_records_summary_and_measures_against_the_saved_history(inline, packings):
+    runs, study = inline
+    assert not study.stopped and not study.failed
+    assert [r["run"] for r in study.records] == [r.key for r in runs]
+    for run, rec in zip(runs, study.records, strict=True):
+        pk = cached_packing(30, "dense", run.seed, packings)
+        s = collapse_series(history_columns(study.out_dir / run.key / "history.csv"), pk,
+                            column_scene(pk, fluid=False).domain)
+        assert rec["final_runout_gap_front"] == s["runout"][-1]
+        assert np.array_equal(rec["series"]["runout"], s["runout"])
+        # the run ends on its first row (1 ms apart) at or after 0.5 tau_c
+        tau = np.sqrt(pk.height / 9.81)
+        assert 0.5 <= rec["t_end_over_tau"] < 0.5 + 1e-3 / tau
+        # Ritter: the front of an inviscid column released from rest moves at 2 sqrt(g H0)
+        ritter = 2 * pk.aspect * np.asarray(rec["series"]["t_over_tau"])
+        assert np.all(np.asarray(rec["series"]["runout"]) <= ritter + 0.05)
+        assert rec["processes"] == 1 and rec["cpu_s"] > 0
+    (row,) = study.summary
+    values = [r["final_runout_mass_front"] for r in study.records]
+    assert row["seeds"] == [0, 1]
+    assert row["final_runout_mass_front"]["mean"] == pytest.approx(np.mean(values), rel=1e-14)
+    assert row["final_runout_mass_front"]["std"] == pytest.approx(np.std(values, ddof=1),
+                                                                  rel=1e-12)
+    on_disk = json.loads((study.out_dir / "records.json").read_text())
+    assert [_numbers(r) for r in on_disk["records"]] == [_numbers(r) for r in study.records]
+
+
+def test_a_finished_run_is_read_back_not_run_again(inline, packings):
+    runs, study = inline
+    again = run_collapse_study(runs, study.out_dir, packings=packings)
+    assert [_numbers(r) for r in again.records] == [_numbers(r) for r in study.records]
+    assert all(r["processes"] == 1 for r in again.records)  # nobody stepped them again
+
+
+def test_process_pool_gives_the_same_records(inline, packings, tmp_path):
+    runs, study = inline
+    pooled = run_collapse_study(runs, tmp_path, packings=packings, workers=2)
+    assert [_numbers(r) for r in pooled.records] == [_numbers(r) for r in study.records]
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_dask_executor_gives_the_same_records(inline, packings, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    runs, study = inline
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        res = run_collapse_study(runs, tmp_path, packings=packings,
+                                 executor=client.get_executor())
+    assert [_numbers(r) for r in res.records] == [_numbers(r) for r in study.records]
+
+
+def test_to_rest_stops_below_the_energy_ratio(packings, tmp_path):
+    run = CollapseRun(30, "dense", "dry", seed=0, t_end_tau=10.0, to_rest=True,
+                      stop_ratio=0.3, t_min_tau=0.5)
+    rec = execute_collapse(run, tmp_path, packings)
+    assert rec["status"] == "completed" and rec["at_rest"]
+    assert rec["energy_ratio"] < 0.3
+    rest = json.loads((tmp_path / run.key / "rest.json").read_text())
+    assert 0.5 <= rest["t_over_tau"] < 10.0 and rest["energy_ratio"] == rec["energy_ratio"]
+
+
+def test_immersed_run_records_its_mesh(packings, tmp_path):
+    """Two coupled steps of the dense column in water: DOFs and the run's cost counted."""
+    pk = cached_packing(30, "dense", 0, packings)
+    tau = np.sqrt(pk.height / 9.81)
+    run = CollapseRun(30, "dense", "immersed", seed=0, core_ratio=0.8,
+                      t_end_tau=2 * 2e-4 / tau)
+    rec = execute_collapse(run, tmp_path, packings)
+    assert rec["status"] == "completed" and rec["steps"] == 2
+    assert rec["dofs_max"] >= rec["dofs_mean"] > 1e4
+    assert (tmp_path / run.key / "flow.pvd").exists()
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(state="medium"), "state = 'medium': must be one of dense, loose"),
+    (dict(medium="wet"), "medium = 'wet': must be one of dry, immersed"),
+    (dict(medium="immersed", core_ratio=1.2), "core_ratio = 1.2: must be in (0, 1]"),
+    (dict(core_ratio=0.8), "core_ratio = 0.8: a dry run has no fluid outline"),
+    (dict(n=1), "n = 1: must be an integer >= 2"),
+    (dict(seed=-1), "seed = -1: must be an integer >= 0"),
+    (dict(t_end_tau=0.0), "t_end_tau = 0.0: must be finite and > 0"),
+    (dict(to_rest=True, stop_ratio=1.5), "stop_ratio = 1.5: must be in (0, 1)"),
+    (dict(to_rest=True, t_min_tau=9.0), "t_min_tau = 9.0: must satisfy"),
+])
+def test_bad_run_one_line(change, message):
+    spec = dict(n=30, state="dense", medium="dry") | change
+    with pytest.raises(ValueError) as err:
+        CollapseRun(**spec)
+    assert message in str(err.value) and "\n" not in str(err.value)
+
+
+def test_bad_study_input_one_line(tmp_path):
+    run = CollapseRun(30, "dense", "dry")
+    with pytest.raises(ValueError, match=r"workers = 0: must be an integer >= 1"):
+        run_collapse_study([run], tmp_path, workers=0)
+    with pytest.raises(ValueError, match="dense_dry_s0 given more than once"):
+        run_collapse_study([run, run], tmp_path)
+    with pytest.raises(TypeError, match="runs: dict given; each must be a CollapseRun"):
+        run_collapse_study([{"n": 30}], tmp_path)
