@@ -12,7 +12,8 @@ dry ones) dashed. For immersed runs it also reads the excess pore pressure along
 the still fluid at the tank's top right corner, over ``(rho_p - rho_f) g H0``) in every
 flow frame saved after the release, with its mean over the column's foot (``d_max / 2``
 to ``L0 - d_max / 2``; points inside grain cores left out), and draws those lines
-(``--pressure-figure``).
+(``--pressure-figure``), and renders the last saved frame of each immersed run with the
+pressure coloured (``--snapshot-figure``; pyvista, off-screen).
 
 Usage::
 
@@ -140,6 +141,47 @@ def pressure_figure(records: list, path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
+def snapshot_figure(root: Path, records: list, n: int, path: Path) -> None:
+    """The last saved frame of every immersed run, the pressure coloured (pyvista,
+    off-screen): the column's part of the tank, colours centred on the still fluid's
+    pressure at the reference point, so that blue is suction and red overpressure."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import meshio
+
+    from skfem_granular.collapse import frame_pressure, reference_point
+    from skfem_granular.io import read_pvd
+    from skfem_granular.viz import render_frame
+
+    pictures = []
+    for r in (r for r in records if r["medium"] == "immersed"):
+        folder = root / r["run"]
+        t, flow_vtu = read_pvd(folder / "flow.pvd")[-1]
+        particles = dict(read_pvd(folder / "particles.pvd")).get(t)
+        pk = packing(n, r["state"], r["seed"])
+        X = meshio.read(flow_vtu).points
+        tank = (X[:, 0].min(), X[:, 1].min(), X[:, 0].max(), X[:, 1].max())
+        p_ref = float(frame_pressure(flow_vtu, reference_point(tank, pk.d_max))[0])
+        m = (pk.density - 1000.0) * 9.81 * pk.height * 0.3  # 0.3 of the immersed weight
+        box = (tank[0], tank[1], tank[0] + 3.0 * pk.width, tank[1] + 1.25 * pk.height)
+        pictures.append(render_frame(
+            flow_vtu, particles, field="pressure", box=box, clim=(p_ref - m, p_ref + m),
+            window_size=(1200, 520),
+            title=(f"{r['state']}, t = {t:.3f} s ({t / r['tau_c']:.2f} tau_c): pressure (Pa), "
+                   f"still fluid {p_ref:+.1f} Pa")))
+    if not pictures:
+        return
+    fig, axes = plt.subplots(len(pictures), 1, figsize=(10, 4.4 * len(pictures)))
+    for ax, pic in zip(np.atleast_1d(axes), pictures, strict=True):
+        ax.imshow(pic.image)
+        ax.set_axis_off()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+
+
 def figure(records: list, matrix: list, path: Path) -> None:
     """Run-out curves: the runs read here solid, the finished runs of the matrix dashed."""
     from skfem_granular.collapse.plots import plot_runout_curves
@@ -179,6 +221,8 @@ def main(argv=None) -> None:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--figure", type=Path)
     ap.add_argument("--pressure-figure", type=Path)
+    ap.add_argument("--snapshot-figure", type=Path,
+                    help="the last saved frame of each immersed run, pressure coloured")
     args = ap.parse_args(argv)
     if not args.root.is_dir():
         sys.exit(f"root: {args.root} is not a folder")
@@ -208,6 +252,8 @@ def main(argv=None) -> None:
         figure(records, matrix, args.figure)
     if args.pressure_figure is not None:
         pressure_figure(records, args.pressure_figure)
+    if args.snapshot_figure is not None:
+        snapshot_figure(args.root, records, args.n, args.snapshot_figure)
 
 
 if __name__ == "__main__":
