@@ -17,6 +17,8 @@
 - ``skfem-granular scenes`` lists the bundled scenes (name and first comment line).
 - ``skfem-granular render DIR --png PATH | --animation PATH`` draws a run's output.
 - ``skfem-granular study single-particle|faxen`` runs an accuracy-vs-cost study.
+- ``skfem-granular collapse N --out DIR [...]`` runs the loose/dense x dry/immersed collapse
+  matrix (:mod:`skfem_granular.cli_collapse`).
 - ``skfem-granular pack N --out FILE.npz [--aspect A] [--state dense|loose] [--shape S]
   [--seed K] [--size-ratio R] [--d-mean D] [--margin M] [--scene FILE.toml [--dry]]``
   prepares a column of N grains with the DEM alone
@@ -107,6 +109,9 @@ def _parser() -> argparse.ArgumentParser:
                      help="--animation: every N-th frame (default 1)")
     ren.add_argument("--fps", type=float, default=10.0,
                      help="--animation: frames per second (default 10)")
+    from .cli_collapse import add_parser as add_collapse
+
+    add_collapse(sub)
     stu = sub.add_parser("study", help="accuracy against cost over a grid of discretisations")
     stu.add_argument("study", choices=["single-particle", "faxen"])
     stu.add_argument("--out", help="study directory (default: out/study_<study>[_smoke])")
@@ -236,6 +241,10 @@ def _command(argv) -> int:
         return _study(args)
     if args.command == "pack":
         return _pack(args)
+    if args.command == "collapse":
+        from .cli_collapse import run as run_collapse
+
+        return run_collapse(args)
     from .scene import Scene
     from .simulation import Simulation
 

@@ -24,6 +24,7 @@ from skfem_granular.fluid import Fluid, TaylorHood, solve_steady
 from skfem_granular.fluid.unsteady import BDF2Integrator, evolve
 from skfem_granular.scene import Effects, MeshSpec, ParticleSpec, Scene, TimeSpec
 from skfem_granular.simulation import Simulation
+from skfem_granular.studies import CollapseRun, run_collapse_study
 
 ROOT = Path(__file__).resolve().parents[1]
 PROJECT_DIRS = (str(ROOT / "skfem_granular"), str(ROOT / "meshing"))
@@ -409,6 +410,12 @@ LIB = [
                      "density": 2650.0, "core_ratio": 1e-5}],
          mesh={"kind": "graded"}))),
      ["particles[0]: extent", "below 1e-05 x the domain size"]),
+    ("collapse-run-state", lambda t: CollapseRun(30, "medium", "dry"),
+     ["state = 'medium'", "dense, loose"]),
+    ("collapse-run-dry-core-ratio", lambda t: CollapseRun(30, "dense", "dry", core_ratio=0.8),
+     ["core_ratio = 0.8", "a dry run has no fluid outline"]),
+    ("collapse-study-workers", lambda t: run_collapse_study([], t, workers=0),
+     ["workers = 0", "integer >= 1"]),
 ]
 
 

@@ -158,3 +158,32 @@ def test_bad_study_input_one_line(tmp_path):
         run_collapse_study([run, run], tmp_path)
     with pytest.raises(TypeError, match="runs: dict given; each must be a CollapseRun"):
         run_collapse_study([{"n": 30}], tmp_path)
+
+
+def test_cli_runs_the_matrix_and_prints_the_spread(tmp_path, capsys):
+    from skfem_granular.cli import main
+
+    argv = ["collapse", "30", "--out", str(tmp_path), "--states", "dense", "--media", "dry",
+            "--seeds", "0", "1", "--tau", "0.5"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out.splitlines()
+    records = json.loads((tmp_path / "records.json").read_text())["records"]
+    values = [r["final_runout_mass_front"] for r in records]
+    assert [line.split(":")[0] for line in out[:2]] == ["dense_dry_s0", "dense_dry_s1"]
+    assert out[2] == (f"dense dry: run-out {np.mean(values):.3f} +- "
+                      f"{np.std(values, ddof=1):.3f} ({min(values):.3f} - {max(values):.3f}) "
+                      "over seeds [0, 1]")
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["--states", "medium"], "state = 'medium': must be one of dense, loose"),
+    (["--workers", "0"], "--workers = 0: must be an integer >= 1"),
+    (["--cores", "1.5", "--media", "immersed"], "core_ratio = 1.5: must be in (0, 1]"),
+    (["--to-rest", "--t-min", "9"], "t_min_tau = 9.0: must satisfy"),
+])
+def test_cli_bad_input_one_line_exit_2(argv, text, tmp_path, capsys):
+    from skfem_granular.cli import main
+
+    assert main(["collapse", "30", "--out", str(tmp_path)] + argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and text in err[0]

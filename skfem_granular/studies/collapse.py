@@ -59,6 +59,8 @@ class CollapseStudy:
     summary: list = field(default_factory=list)
     stopped: dict = field(default_factory=dict)
     failed: dict = field(default_factory=dict)
+    #: the signal (``"SIGINT"``, ``"SIGTERM"``) or budget that stopped a run, if one did
+    stopped_by: str | None = None
 
 
 def _write_records(path: Path, records: list) -> None:
@@ -116,6 +118,8 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
                 on_record(rec)
         else:
             getattr(study, rec["status"])[run.key] = rec["message"]
+            if rec["status"] == "stopped":
+                study.stopped_by = rec.get("stopped_by")
             if log is not None:
                 log(rec["message"])
 

@@ -292,7 +292,7 @@ def execute_collapse(run: CollapseRun, out_dir, packings=None) -> dict:
         why = (f"failed: {summary.get('failed')}" if failed else
                f"stopped by {summary.get('stopped_by')}; start again to continue")
         return {"run": run.key, "status": "failed" if failed else "stopped",
-                "steps": summary.get("steps"),
+                "steps": summary.get("steps"), "stopped_by": summary.get("stopped_by"),
                 "message": f"{run.key}: {summary.get('status')} at step "
                            f"{summary.get('steps')} ({why})"}
     rec = {"run": run.key, "state": run.state, "medium": run.medium,
