@@ -135,6 +135,8 @@ def main(argv=None):
                                    packings=PACKINGS, workers=a.workers,
                                    executor=client.get_executor() if client else None,
                                    on_record=recorded, log=lambda line: print(line, flush=True))
+    except ValueError as exc:
+        ap.error(str(exc))
     finally:
         if client is not None:
             client.close()

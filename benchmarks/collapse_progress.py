@@ -21,7 +21,8 @@ Usage::
         --matrix benchmarks/results/collapse_matrix_n1000.json \\
         --out benchmarks/results/collapse_progress_n1000.json \\
         --figure docs/figures/collapse_n1000_immersed_progress.png \\
-        --pressure-figure docs/figures/collapse_n1000_immersed_pressure.png
+        --pressure-figure docs/figures/collapse_n1000_immersed_pressure.png \\
+        --snapshot-figure docs/figures/collapse_n1000_immersed_snapshots.png
 """
 
 from __future__ import annotations

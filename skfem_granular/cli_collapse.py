@@ -6,8 +6,10 @@
 back) the collapses of :func:`skfem_granular.studies.plan_collapse` with
 :func:`skfem_granular.studies.run_collapse_study`, prints one line per finished run and
 the mean and spread over the seeds of each set-up, and leaves every record in
-``DIR/records.json``. Exit code 0 when every run finished, 1 when one failed, 130 / 143
-when SIGINT / SIGTERM stopped the study (run the same command again to continue).
+``DIR/records.json``. ``--tau`` is the run length in ``tau_c`` (default 8; with
+``--to-rest`` the latest end, default 20). Exit code 0 when every run finished, 1 when one
+failed, 2 for bad input (one line), 130 / 143 when SIGINT / SIGTERM stopped the study (run
+the same command again to continue).
 """
 
 from __future__ import annotations
@@ -31,41 +33,47 @@ def add_parser(sub) -> None:
                    help="core ratios of the immersed runs (default 0.7 0.9)")
     c.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     c.add_argument("--aspect", type=float, default=0.8, help="H0 / L0 (default 0.8)")
-    c.add_argument("--tau", type=float, default=8.0,
-                   help="run length in tau_c (with --to-rest: the latest end; default 8)")
+    c.add_argument("--tau", type=float, default=None,
+                   help="run length in tau_c (default 8; with --to-rest the latest end, "
+                        "default 20)")
     c.add_argument("--to-rest", action="store_true",
                    help="end a run when its kinetic energy is below --stop-ratio of its peak")
     c.add_argument("--stop-ratio", type=float, default=1e-3)
     c.add_argument("--t-min", type=float, default=3.0, help="earliest rest, in tau_c")
     c.add_argument("--checkpoint-every", type=int, default=200)
-    c.add_argument("--workers", type=int, default=1,
-                   help="runs at once in local processes (1: one after another here)")
-    c.add_argument("--scheduler", help="a Dask scheduler's address (the cluster extra)")
+    where = c.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=1,
+                       help="runs at once in local processes (1: one after another here)")
+    where.add_argument("--scheduler", help="a Dask scheduler's address (the cluster extra)")
 
 
 def run(args) -> int:
     """Run the ``collapse`` subcommand; returns the exit code."""
+    from .simulation.signals import StopNow
     from .studies import plan_collapse, run_collapse_study
 
+    tau = args.tau if args.tau is not None else (20.0 if args.to_rest else 8.0)
+    client = None
     try:
         runs = plan_collapse(args.n, states=args.states, media=args.media, cores=args.cores,
-                             seeds=args.seeds, aspect=args.aspect, t_end_tau=args.tau,
+                             seeds=args.seeds, aspect=args.aspect, t_end_tau=tau,
                              to_rest=args.to_rest, stop_ratio=args.stop_ratio,
                              t_min_tau=args.t_min, checkpoint_every=args.checkpoint_every)
         if args.workers < 1:
             raise ValueError(f"--workers = {args.workers}: must be an integer >= 1")
-        client = None
         if args.scheduler:
-            from distributed import Client
-
-            client = Client(args.scheduler)
-    except (ValueError, ImportError, OSError) as exc:
-        print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
-    try:
+            client = _client(args.scheduler)
         study = run_collapse_study(runs, args.out, workers=args.workers,
                                    executor=client.get_executor() if client else None,
-                                   on_record=_print_record, log=lambda m: print(m, flush=True))
+                                   on_record=_print_record,
+                                   log=lambda m: print(m, flush=True))
+    except (ValueError, TypeError, OSError) as exc:
+        print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+    except StopNow as exc:  # between runs (preparing a column, reading a run back)
+        print(f"skfem-granular: stopped by {exc.name} between runs; the records so far are "
+              f"in {args.out}/records.json (the same command continues)", file=sys.stderr)
+        return exc.exit_status
     finally:
         if client is not None:
             client.close()
@@ -78,6 +86,20 @@ def run(args) -> int:
     if study.stopped:
         return SIGNAL_EXIT.get(study.stopped_by or "", 1)
     return 0
+
+
+def _client(address: str):
+    """A Dask client of the scheduler at ``address`` (one-line errors naming --scheduler)."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ValueError("--scheduler: needs Dask's distributed (pip install "
+                         "'skfem-granular[cluster]')") from None
+    try:
+        return Client(address, timeout="10s")
+    except (OSError, ValueError, TypeError) as exc:
+        raise ValueError(f"--scheduler = {address!r}: no Dask scheduler there "
+                         f"({type(exc).__name__}: {exc})") from None
 
 
 def _print_record(rec: dict) -> None:

@@ -71,9 +71,12 @@ def test_records_summary_and_measures_against_the_saved_history(inline, packings
         # the run ends on its first row (1 ms apart) at or after 0.5 tau_c
         tau = np.sqrt(pk.height / 9.81)
         assert 0.5 <= rec["t_end_over_tau"] < 0.5 + 1e-3 / tau
-        # Ritter: the front of an inviscid column released from rest moves at 2 sqrt(g H0)
+        # Ritter: the front of an inviscid column released from rest moves at 2 sqrt(g H0),
+        # (L - L0) / L0 <= 2 a t / tau_c, up to the outlines' overlap at rest (as in
+        # test_collapse: 0.05 d_max)
         ritter = 2 * pk.aspect * np.asarray(rec["series"]["t_over_tau"])
-        assert np.all(np.asarray(rec["series"]["runout"]) <= ritter + 0.05)
+        slack = 0.05 * pk.d_max / pk.width
+        assert np.all(np.asarray(rec["series"]["runout"]) <= ritter + slack)
         assert rec["processes"] == 1 and rec["cpu_s"] > 0
     (row,) = study.summary
     values = [r["final_runout_mass_front"] for r in study.records]
@@ -127,9 +130,15 @@ def test_immersed_run_records_its_mesh(packings, tmp_path):
     run = CollapseRun(30, "dense", "immersed", seed=0, core_ratio=0.8,
                       t_end_tau=2 * 2e-4 / tau)
     rec = execute_collapse(run, tmp_path, packings)
-    assert rec["status"] == "completed" and rec["steps"] == 2
-    assert rec["dofs_max"] >= rec["dofs_mean"] > 1e4
-    assert (tmp_path / run.key / "flow.pvd").exists()
+    assert rec["status"] == "completed" and rec["steps"] == 2 and rec["remeshes"] == 0
+    # one mesh throughout: its unknowns are 2 per P2 node plus 1 per vertex (Taylor-Hood),
+    # counted here from the last saved frame
+    import meshio
+
+    frame = sorted((tmp_path / run.key).glob("flow_*.vtu"))[-1]
+    m = meshio.read(frame)
+    vertices = np.unique(m.cells_dict["triangle6"][:, :3]).size
+    assert rec["dofs_max"] == rec["dofs_mean"] == 2 * len(m.points) + vertices
 
 
 @pytest.mark.parametrize("change, message", [
@@ -179,7 +188,8 @@ def test_cli_runs_the_matrix_and_prints_the_spread(tmp_path, capsys):
     (["--states", "medium"], "state = 'medium': must be one of dense, loose"),
     (["--workers", "0"], "--workers = 0: must be an integer >= 1"),
     (["--cores", "1.5", "--media", "immersed"], "core_ratio = 1.5: must be in (0, 1]"),
-    (["--to-rest", "--t-min", "9"], "t_min_tau = 9.0: must satisfy"),
+    (["--to-rest", "--t-min", "25"], "t_min_tau = 25.0: must satisfy 0 <= t_min_tau < "
+                                     "t_end_tau = 20.0"),
 ])
 def test_cli_bad_input_one_line_exit_2(argv, text, tmp_path, capsys):
     from skfem_granular.cli import main
@@ -187,3 +197,78 @@ def test_cli_bad_input_one_line_exit_2(argv, text, tmp_path, capsys):
     assert main(["collapse", "30", "--out", str(tmp_path)] + argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and text in err[0]
+
+
+def test_a_run_cut_off_continues_to_the_same_record(packings, tmp_path):
+    """A run broken off after 12 of its steps (checkpoints every 5) and started again
+    gives the record of the run that never stopped (resumed bit for bit)."""
+    from dataclasses import replace
+
+    from skfem_granular.simulation import Simulation
+
+    run = CollapseRun(30, "dense", "dry", seed=1, t_end_tau=0.8, checkpoint_every=5)
+    whole = execute_collapse(run, tmp_path / "whole", packings)
+    pk = cached_packing(30, "dense", 1, packings)
+    folder = tmp_path / "cut" / run.key
+    scene = column_scene(pk, fluid=False, t_end=run.t_end_tau * np.sqrt(pk.height / 9.81),
+                         name=folder.name, output_dir=str(folder), vtu_every=run.vtu_every)
+    sim = Simulation(replace(scene, checkpoint_every=5))
+    steps = sim.evolve(progress=False)
+    for _ in range(12):
+        next(steps)
+    steps.close()
+    assert json.loads((folder / "summary.json").read_text())["status"] == "closed"
+    cut = execute_collapse(run, tmp_path / "cut", packings)
+    assert cut["processes"] == 1  # the cut run was not a study's: only the one continuing it books
+    assert _numbers(cut) | {"dofs_mean": None} == _numbers(whole) | {"dofs_mean": None}
+
+
+def test_a_failed_run_does_not_lose_the_others(packings, tmp_path):
+    """A column that cannot be prepared (deposition limit 1 ms) fails, in this process and
+    in a pool; the other run's record is kept."""
+    good = CollapseRun(30, "dense", "dry", seed=0, **DRY)
+    bad = CollapseRun(30, "loose", "dry", seed=5, packing_t_max=1e-3, **DRY)
+    for workers in (1, 2):
+        study = run_collapse_study([bad, good], tmp_path / f"w{workers}", packings=packings,
+                                   workers=workers)
+        assert [r["run"] for r in study.records] == [good.key]
+        assert list(study.failed) == [bad.key] and "t_max" in study.failed[bad.key]
+
+
+def test_records_of_two_studies_in_one_folder_are_merged(packings, tmp_path):
+    a = CollapseRun(30, "dense", "dry", seed=0, **DRY)
+    b = CollapseRun(30, "dense", "dry", seed=1, **DRY)
+    run_collapse_study([a], tmp_path, packings=packings)
+    run_collapse_study([b], tmp_path, packings=packings)
+    on_disk = json.loads((tmp_path / "records.json").read_text())
+    assert [r["run"] for r in on_disk["records"]] == [a.key, b.key]
+    assert on_disk["summary"][0]["seeds"] == [0, 1]
+
+
+def test_a_folder_of_other_settings_is_refused(packings, tmp_path):
+    run = CollapseRun(30, "dense", "dry", seed=0, **DRY)
+    run_collapse_study([run], tmp_path, packings=packings)
+    longer = CollapseRun(30, "dense", "dry", seed=0, t_end_tau=1.0)
+    with pytest.raises(ValueError) as err:
+        run_collapse_study([longer], tmp_path, packings=packings)
+    msg = str(err.value)
+    assert "t_end_tau = 0.5" in msg and "(asked: t_end_tau = 1.0)" in msg and "\n" not in msg
+
+
+def test_numpy_numbers_become_plain_ones():
+    (run,) = plan_collapse(np.int64(30), states=["dense"], media=["dry"], seeds=np.arange(1))
+    assert type(run.n) is int and type(run.seed) is int and type(run.aspect) is float
+    json.dumps(run.__dict__)
+
+
+@pytest.mark.parametrize("axes, message", [
+    (dict(seeds=0), "seeds = 0: must be a list of values"),
+    (dict(states="dense"), "states = 'dense': must be a list of values"),
+    (dict(cores=[]), "cores = []: must name at least one value"),
+    (dict(seeds=[1, 1]), "seeds = [1, 1]: each value once"),
+    (dict(cores=["0.8"]), "core_ratio = '0.8': must be a number"),
+])
+def test_bad_plan_one_line(axes, message):
+    with pytest.raises(ValueError) as err:
+        plan_collapse(30, **axes)
+    assert message in str(err.value)

@@ -59,8 +59,14 @@ Modules (each imports only those above it):
 """
 
 from .analysis import analyse, fit_order, orders, pareto_front, sweet_spot
-from .collapse import CollapseStudy, run_collapse_study, summarise_collapses
-from .collapse_run import CollapseRun, cached_packing, execute_collapse, plan_collapse
+from .collapse import CollapseStudy, merge_records, run_collapse_study, summarise_collapses
+from .collapse_run import (
+    CollapseRun,
+    cached_packing,
+    check_folder,
+    execute_collapse,
+    plan_collapse,
+)
 from .definitions import COLUMNS, FAXEN, SCENE, STUDIES, Run, faxen_drag, plan
 from .driver import StudyResult, load_records, local_pool, run_study
 from .meshes import mirror_symmetric, renumbered
@@ -81,12 +87,14 @@ __all__ = [
     "all_plots",
     "analyse",
     "cached_packing",
+    "check_folder",
     "execute",
     "execute_collapse",
     "faxen_drag",
     "fit_order",
     "load_records",
     "local_pool",
+    "merge_records",
     "mirror_symmetric",
     "orders",
     "pareto_front",

@@ -4,25 +4,32 @@
 :func:`~.collapse_run.plan_collapse`) to an executor and keeps their records
 (:func:`~.collapse_run.execute_collapse`), with the mean and spread over seeds of every
 set-up (:func:`summarise_collapses`), in ``<out>/records.json``. Without an executor the
-runs go one after another in this process, where a signal stops the study cleanly at the
-end of a step (started again, each run continues from its checkpoint); ``workers > 1``
-gives a local process pool; any :class:`concurrent.futures.Executor` takes them too, e.g.
-a Dask cluster's (``distributed.Client(...).get_executor()``, the ``cluster`` extra).
-Workers share the output folder, so a cluster needs a shared file system.
+runs go one after another in this process; ``workers > 1`` gives a local process pool; any
+:class:`concurrent.futures.Executor` takes them too, e.g. a Dask cluster's
+(``distributed.Client(...).get_executor()``, the ``cluster`` extra). Workers share the
+output folder, so a cluster needs a shared file system.
+
+Stopping. SIGINT or SIGTERM during a run stops it at the end of its step, its checkpoint
+written; started again, the study reads the finished runs back and continues the others.
+One after another in this process, the study ends with the stopped run. In a local pool,
+Ctrl-C in a terminal reaches the workers too (one process group) and each stops at the
+end of its step; a signal to this process alone waits for the runs under way. On a Dask
+cluster the runs under way finish their task when the client goes.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import tempfile
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .collapse_run import CollapseRun, execute_collapse
+from .collapse_run import CollapseRun, cached_packing, check_folder, execute_collapse
 
-__all__ = ["CollapseStudy", "run_collapse_study", "summarise_collapses"]
+__all__ = ["CollapseStudy", "merge_records", "run_collapse_study", "summarise_collapses"]
 
 #: the record's quantities summarised over seeds per set-up
 SUMMARY_KEYS = ("final_runout_mass_front", "froude_max", "t90_over_tau", "cpu_s",
@@ -30,8 +37,20 @@ SUMMARY_KEYS = ("final_runout_mass_front", "froude_max", "t90_over_tau", "cpu_s"
 
 
 def summarise_collapses(records: Iterable[dict]) -> list[dict]:
-    """Per set-up (state, medium, core ratio): the seeds and, over them, the mean and
-    spread (:func:`~skfem_granular.collapse.realisations`) of :data:`SUMMARY_KEYS`."""
+    """The mean and spread over seeds of each set-up's records.
+
+    Parameters
+    ----------
+    records : iterable of dict
+        Finished runs' records (:func:`~.collapse_run.execute_collapse`).
+
+    Returns
+    -------
+    list of dict
+        Per set-up (state, medium, core ratio): ``seeds`` and, for each of
+        :data:`SUMMARY_KEYS`, :func:`~skfem_granular.collapse.realisations` of its values
+        (mean, sample standard deviation, min, max, count; None without values).
+    """
     from ..collapse import realisations
 
     groups: dict = {}
@@ -50,24 +69,89 @@ def summarise_collapses(records: Iterable[dict]) -> list[dict]:
 
 @dataclass
 class CollapseStudy:
-    """What :func:`run_collapse_study` did: the finished runs' records (in the order of the
-    runs), their summary over seeds, and the runs that did not finish (key -> message:
-    ``stopped`` ones continue from their checkpoints when run again)."""
+    """What :func:`run_collapse_study` did.
+
+    Attributes
+    ----------
+    out_dir : Path
+        The study's folder (absolute).
+    records : list of dict
+        The finished runs' records, in the order of the runs
+        (:func:`~.collapse_run.execute_collapse`).
+    summary : list of dict
+        :func:`summarise_collapses` of ``records``.
+    stopped, failed : dict
+        Runs that did not finish, key -> one line: ``stopped`` ones continue from their
+        checkpoints when run again.
+    stopped_by : str or None
+        The signal (``"SIGINT"``, ``"SIGTERM"``) or budget that stopped a run, if one did.
+    """
 
     out_dir: Path
     records: list = field(default_factory=list)
     summary: list = field(default_factory=list)
     stopped: dict = field(default_factory=dict)
     failed: dict = field(default_factory=dict)
-    #: the signal (``"SIGINT"``, ``"SIGTERM"``) or budget that stopped a run, if one did
     stopped_by: str | None = None
 
 
-def _write_records(path: Path, records: list) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps({"records": records, "summary": summarise_collapses(records)},
-                              indent=1) + "\n")
-    os.replace(tmp, path)
+def _locked(fh) -> None:
+    """Hold an exclusive lock on the open file ``fh`` until it is closed (POSIX; elsewhere
+    no lock)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return
+    fcntl.flock(fh, fcntl.LOCK_EX)
+
+
+def merge_records(path, new: list) -> list:
+    """Put the records ``new`` into the file ``path`` (``records.json``) in place of
+    earlier records of the same runs, with the summary over all of them; returns them.
+
+    Read, merged and written under an exclusive lock and renamed into place from a unique
+    temporary file, so that studies writing into one folder at once (one process per
+    packing state, say) keep each other's records.
+    """
+    path = Path(path)
+    with open(path.with_name(f".{path.name}.lock"), "w") as lock:
+        _locked(lock)
+        try:
+            old = json.loads(path.read_text())["records"] if path.exists() else []
+        except (json.JSONDecodeError, KeyError, TypeError):
+            old = []  # not a records file: the run folders hold every record anyway
+        keys = {r["run"] for r in new}
+        records = [r for r in old if r["run"] not in keys] + list(new)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+        with os.fdopen(fd, "w") as fh:
+            fh.write(json.dumps({"records": records, "summary": summarise_collapses(records)},
+                                indent=1) + "\n")
+        os.replace(tmp, path)
+    return records
+
+
+def _prepare(n: int, state: str, seed: int, packings: Path, aspect: float,
+             t_max: float) -> None:
+    """Prepare one column on a worker (nothing sent back)."""
+    cached_packing(n, state, seed, packings, aspect=aspect, t_max=t_max)
+
+
+def _prepare_all(executor: Executor, runs: list, packings: Path) -> dict:
+    """Each distinct column of ``runs`` prepared once on ``executor`` before the runs start
+    (two workers would otherwise prepare the same one at once); column -> error line."""
+    jobs = {}
+    for r in runs:
+        k = (r.n, r.state, r.seed, r.aspect)
+        if k not in jobs:
+            jobs[k] = executor.submit(_prepare, r.n, r.state, r.seed, packings, r.aspect,
+                                      r.packing_t_max)
+    errors = {}
+    for k, fut in jobs.items():
+        try:
+            fut.result()
+        except Exception as exc:  # noqa: BLE001 - reported on each run that needs it
+            errors[k] = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    return errors
 
 
 def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
@@ -82,11 +166,15 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
         Distinct runs (:func:`plan_collapse`).
     out_dir : str or Path
         Run folders ``out_dir/<key>`` and ``out_dir/records.json`` (every finished
-        record and the summary over seeds, rewritten as records arrive).
+        record and the summary over seeds, merged as records arrive:
+        :func:`merge_records`). A folder that holds a run of other settings is refused
+        before anything runs (:func:`~.collapse_run.check_folder`).
     packings : str or Path, optional
         Where prepared columns are kept (default ``out_dir/packings``).
     executor : concurrent.futures.Executor, optional
-        Where the runs go, e.g. ``distributed.Client(...).get_executor()``.
+        Where the runs go, e.g. ``distributed.Client(...).get_executor()``; its workers
+        must see ``out_dir`` (a shared file system; the paths are made absolute here).
+        The distinct columns are prepared first, one task each.
     workers : int
         Without ``executor``: 1 runs them one after another in this process (a run
         stopped by a signal stops the study; the rest wait for the next start), more
@@ -95,6 +183,17 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
         Called with each finished record as it arrives.
     log : callable, optional
         Called with one line per run that did not finish.
+
+    Returns
+    -------
+    CollapseStudy
+
+    Raises
+    ------
+    ValueError
+        Bad ``workers``, a run given twice, or a folder holding other settings.
+    TypeError
+        Something other than a :class:`~.collapse_run.CollapseRun` among ``runs``.
     """
     runs = list(runs)
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
@@ -104,16 +203,18 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
     keys = [r.key for r in runs]
     if dup := sorted({k for k in keys if keys.count(k) > 1}):
         raise ValueError(f"runs: {', '.join(dup)} given more than once (one folder each)")
-    out_dir = Path(out_dir)
+    out_dir = Path(out_dir).resolve()
+    packings = out_dir / "packings" if packings is None else Path(packings).resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
+    for r in runs:
+        check_folder(r, out_dir / r.key)
     study = CollapseStudy(out_dir)
     done: dict = {}
 
     def arrived(run: CollapseRun, rec: dict) -> None:
         if rec["status"] == "completed":
             done[run.key] = rec
-            _write_records(out_dir / "records.json",
-                           [done[k] for k in keys if k in done])
+            merge_records(out_dir / "records.json", [rec])
             if on_record is not None:
                 on_record(rec)
         else:
@@ -123,12 +224,15 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
             if log is not None:
                 log(rec["message"])
 
+    def failed(run: CollapseRun, why: str) -> dict:
+        return {"status": "failed", "message": f"{run.key}: {why}"}
+
     if executor is None and workers == 1:
         for run in runs:
             try:
                 rec = execute_collapse(run, out_dir, packings)
             except Exception as exc:  # noqa: BLE001 - one failed run must not lose the others
-                rec = {"status": "failed", "message": f"{run.key}: {type(exc).__name__}: {exc}"}
+                rec = failed(run, f"{type(exc).__name__}: {exc}")
             arrived(run, rec)
             if rec["status"] == "stopped":  # asked to stop: the remaining runs wait
                 break
@@ -139,14 +243,19 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
 
             own = executor = local_pool(workers)
         try:
-            futs = {executor.submit(execute_collapse, r, out_dir, packings): r for r in runs}
+            unprepared = _prepare_all(executor, runs, packings)
+            futs = {}
+            for r in runs:
+                if (why := unprepared.get((r.n, r.state, r.seed, r.aspect))) is not None:
+                    arrived(r, failed(r, f"its column could not be prepared: {why}"))
+                else:
+                    futs[executor.submit(execute_collapse, r, out_dir, packings)] = r
             for fut in as_completed(futs):
                 run = futs[fut]
                 try:
                     rec = fut.result()
                 except Exception as exc:  # noqa: BLE001 - one failed run must not lose the others
-                    rec = {"status": "failed",
-                           "message": f"{run.key}: {type(exc).__name__}: {exc}"}
+                    rec = failed(run, f"{type(exc).__name__}: {exc}")
                 arrived(run, rec)
         finally:
             if own is not None:

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MEDIA", "STATES", "CollapseRun", "cached_packing", "execute_collapse",
-           "plan_collapse"]
+__all__ = ["MEDIA", "STATES", "CollapseRun", "cached_packing", "check_folder",
+           "execute_collapse", "plan_collapse"]
 
 STATES = ("dense", "loose")
 MEDIA = ("dry", "immersed")
@@ -82,15 +82,21 @@ class CollapseRun:
     packing_t_max: float = 3.0
 
     def __post_init__(self):
-        def whole(name, low):
+        # plain Python numbers (a numpy integer from np.arange would not go into JSON)
+        for name, low in (("n", 2), ("seed", 0), ("checkpoint_every", 1), ("vtu_every", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
                 raise ValueError(f"{name} = {v!r}: must be an integer >= {low}")
-
-        whole("n", 2)
-        whole("seed", 0)
-        whole("checkpoint_every", 1)
-        whole("vtu_every", 1)
+            object.__setattr__(self, name, int(v))
+        for name in ("core_ratio", "aspect", "t_end_tau", "stop_ratio", "t_min_tau",
+                     "packing_t_max"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise ValueError(f"{name} = {v!r}: must be a number")
+            object.__setattr__(self, name, float(v))
+        if not isinstance(self.to_rest, (bool, np.bool_)):
+            raise ValueError(f"to_rest = {self.to_rest!r}: must be True or False")
+        object.__setattr__(self, "to_rest", bool(self.to_rest))
         if self.state not in STATES:
             raise ValueError(f"state = {self.state!r}: must be one of {', '.join(STATES)}")
         if self.medium not in MEDIA:
@@ -118,25 +124,104 @@ class CollapseRun:
         return f"{self.state}_{self.medium}{core}_s{self.seed}"
 
 
+def _choices(name: str, values) -> list:
+    """``values`` as a non-empty list (a single string or number is refused by name)."""
+    if isinstance(values, (str, bytes, int, float)) or not isinstance(values, Iterable):
+        raise ValueError(f"{name} = {values!r}: must be a list of values")
+    values = list(values)
+    if not values:
+        raise ValueError(f"{name} = []: must name at least one value")
+    if len({repr(v) for v in values}) < len(values):
+        raise ValueError(f"{name} = {values!r}: each value once")
+    return values
+
+
 def plan_collapse(n: int, *, states: Iterable[str] = STATES, media: Iterable[str] = MEDIA,
                   cores: Iterable[float] = (0.7, 0.8, 0.9, 0.95),
                   seeds: Iterable[int] = (0, 1, 2), **options) -> list[CollapseRun]:
     """The matrix: per seed, per state, per medium the runs (immersed: one per core ratio).
 
-    ``options``: the other fields of :class:`CollapseRun`, the same for every run.
+    Parameters
+    ----------
+    n : int
+        Grains per column.
+    states, media, cores, seeds : lists
+        The axes of the matrix (``cores``: the immersed runs' core ratios; the dry runs
+        have none). Each a non-empty list.
+    **options
+        The other fields of :class:`CollapseRun`, the same for every run.
+
+    Returns
+    -------
+    list of CollapseRun
+        Seed by seed, state by state, medium by medium.
     """
+    states, media, seeds = (_choices(k, v) for k, v in
+                            (("states", states), ("media", media), ("seeds", seeds)))
+    cores = _choices("cores", cores) if "immersed" in media else [1.0]
     return [CollapseRun(n, state, medium, seed, core, **options)
             for seed in seeds for state in states for medium in media
             for core in (cores if medium == "immersed" else (1.0,))]
 
 
+def check_folder(run: CollapseRun, folder) -> None:
+    """Refuse a run folder holding a run of other settings; record this run's there.
+
+    The folder's name is the run's :attr:`~CollapseRun.key` (state, medium, core ratio,
+    seed); the other settings that decide its numbers (grains, aspect, length, rest
+    criterion) are kept in ``run.json`` when it starts, and a later run of other settings
+    into the same folder is refused in one line naming them (it would be read back, or
+    continued, as if it were the run asked for). A folder from before ``run.json`` is
+    taken as the run asked for.
+    """
+    folder = Path(folder)
+    spec = {k: getattr(run, k) for k in _DECIDING}
+    path = folder / "run.json"
+    if path.exists():
+        held = json.loads(path.read_text())
+        if diff := [k for k in _DECIDING if held.get(k) != spec[k]]:
+            raise ValueError(
+                f"{run.key}: the folder {str(folder)!r} holds this run with "
+                + ", ".join(f"{k} = {held.get(k)!r}" for k in diff) + " (asked: "
+                + ", ".join(f"{k} = {spec[k]!r}" for k in diff)
+                + "); use another output folder for other settings")
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(spec) + "\n")
+
+
+#: the settings of a run besides its key that decide its numbers (checked by check_folder)
+_DECIDING = ("n", "aspect", "t_end_tau", "to_rest", "stop_ratio", "t_min_tau")
+
+
 # ---------------------------------------------------------------------------------- one run
 def cached_packing(n: int, state: str, seed: int, packings, *, aspect: float = 0.8,
                    t_max: float = 3.0):
-    """The column of ``n`` grains (``state``, ``seed``, ``aspect``): prepared once
-    (:func:`~skfem_granular.packing.prepare_column`, deposition limit ``t_max``), then read
-    from the folder ``packings``. Written atomically, so that workers preparing the same
-    column at once leave one whole file."""
+    """The column of ``n`` grains prepared once, then read back.
+
+    Parameters
+    ----------
+    n, state, seed, aspect
+        As :func:`~skfem_granular.packing.prepare_column` takes them (12-gon near-disks,
+        its defaults otherwise); they name the file ``<state>_a<aspect>_n<n>_seed<seed>.npz``.
+    packings : str or Path
+        The folder of prepared columns.
+    t_max : float
+        The deposition's time limit (s): a limit, not a setting of the result (a column
+        that has not come to rest by then is an error), so not part of the name.
+
+    Returns
+    -------
+    Packing
+
+    Notes
+    -----
+    The file is written under a unique temporary name and renamed into place, so
+    processes (or hosts sharing the folder) preparing the same column at once leave one
+    whole file.
+    """
+    import tempfile
+
     from ..packing import load_packing, prepare_column
 
     path = Path(packings) / f"{state}_a{aspect:g}_n{n}_seed{seed}.npz"
@@ -144,8 +229,9 @@ def cached_packing(n: int, state: str, seed: int, packings, *, aspect: float = 0
         return load_packing(path)
     pk = prepare_column(n, aspect, state, seed=seed, t_max=t_max)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = pk.save(path.with_name(f".{path.stem}.{os.getpid()}.npz"))
-    os.replace(tmp, path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".npz", dir=path.parent)
+    os.close(fd)
+    os.replace(pk.save(tmp), path)
     return pk
 
 
@@ -255,6 +341,7 @@ def execute_collapse(run: CollapseRun, out_dir, packings=None) -> dict:
     from ..collapse import column_scene, time_scale
 
     out_dir = Path(out_dir)
+    check_folder(run, out_dir / run.key)
     pk = cached_packing(run.n, run.state, run.seed,
                         out_dir / "packings" if packings is None else packings,
                         aspect=run.aspect, t_max=run.packing_t_max)
