@@ -29,8 +29,9 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-import meshing
 import numpy as np
+
+import meshing
 import skfem_granular as sg
 from skfem_granular.scene import Scene
 from skfem_granular.simulation import Simulation
@@ -79,11 +80,12 @@ def coupled_case(name: str, t_end: float | None = None, seed: int | None = None)
     st = sim.stepper
     marks = [t for t in (0.05, 0.1, 0.16) if t <= h.t[-1] + 1e-12]
     rows = [int(np.argmin(np.abs(h.t - t))) for t in marks]
+    at = list(zip(marks, rows, strict=True))
     return {"cpu_s": cpu, "steps": len(h), "iterations": int(h.iterations.sum()),
             **st.factor_counts, "remeshes": st.remeshes, "final_t": repr(float(h.t[-1])),
             "vy_end": float(h.vy[-1, 0]), "y_end": float(h.y[-1, 0]),
-            "mean_height": {f"{t:g}": float(h.y[k].mean()) for t, k in zip(marks, rows)},
-            "height_spread": {f"{t:g}": float(h.y[k].std()) for t, k in zip(marks, rows)}}
+            "mean_height": {f"{t:g}": float(h.y[k].mean()) for t, k in at},
+            "height_spread": {f"{t:g}": float(h.y[k].std()) for t, k in at}}
 
 
 #: The collapse's grid seed (``--seed``; None: the bundled scene's own, 1).
