@@ -220,7 +220,7 @@ def test_a_run_cut_off_continues_to_the_same_record(packings, tmp_path):
     assert json.loads((folder / "summary.json").read_text())["status"] == "closed"
     cut = execute_collapse(run, tmp_path / "cut", packings)
     assert cut["processes"] == 1  # the cut run was not a study's: only the one continuing it books
-    assert _numbers(cut) | {"dofs_mean": None} == _numbers(whole) | {"dofs_mean": None}
+    assert _numbers(cut) == _numbers(whole)
 
 
 def test_a_failed_run_does_not_lose_the_others(packings, tmp_path):
