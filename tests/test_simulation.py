@@ -346,6 +346,12 @@ def test_summary_counts_factorisations_by_kind():
     assert (s["factorizations"], s["jacobian_refreshes"]) == (2, 0)
     assert s["remesh_reasons"] == {"travel": 0, "angle": 0, "area": 0, "ahead": 0, "wake": 0}
     assert s["mesh"]["kind"] == "graded"
+    # the poorest mesh the 20 steps ended on: the moving mesh as built (the particle
+    # starts at rest and moves by far less than a triangle in 0.2 ms)
+    m = s["mesh"]
+    assert m["steps_checked"] == s["steps"] == 20
+    assert m["min_angle"] - 0.1 < m["min_angle_over_steps"] <= m["min_angle"] + 1e-9
+    assert 0.99 < m["min_area_ratio_over_steps"] <= 1.0
 
 
 def test_phase_times_are_each_counted_once():

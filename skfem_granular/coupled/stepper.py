@@ -81,7 +81,7 @@ from ..fluid.errors import ConvergenceError
 from .ale_rules import ALE_SLIDE_WALLS, REMESH_REASONS, remesh_reason, step_geometry
 from .build import build_coupling, outline_areas, outline_edge
 from .landing import landing_check
-from .mesh_motion import MeshMotion
+from .mesh_motion import MeshMotion, mesh_quality
 from .state import CoupledState, StepReport
 from .transfer import lag, transfer_histories
 from .wake import WakeGrading
@@ -144,6 +144,11 @@ class CoupledStepper:
         steps taken because of contacts.
     remesh_energy_ratios : list of float
         Fluid kinetic energy after / before each transfer onto a new mesh.
+    worst_mesh : dict
+        The poorest mesh the steps of this stepper ended on: ``min_angle`` (degrees),
+        ``min_area_ratio`` (a triangle's signed area over its area as built; <= 0 would
+        be inverted) and the ``steps`` checked. A stepper rebuilt from a checkpoint
+        starts it afresh: it covers the steps since then.
     """
 
     def __init__(self, scene, dem, mesh, *, contacts_active: bool, timings=None,
@@ -167,6 +172,8 @@ class CoupledStepper:
         self.remeshes = self.retries = self.rejections = self.euler_steps = 0
         self._factor_counts = {"factorizations": 0, "jacobian_refreshes": 0}
         self.remesh_energy_ratios: list[float] = []
+        self.worst_mesh = {"min_angle": float("inf"), "min_area_ratio": float("inf"),
+                           "steps": 0}
         #: moving mesh: why it was remeshed, ``{reason: count}`` (:func:`~.ale_rules.remesh_reason`)
         #: and ``wake``: the first remesh after :attr:`wake_grading` found a wake
         self.remesh_reasons = dict.fromkeys((*REMESH_REASONS, "wake"), 0)
@@ -539,6 +546,7 @@ class CoupledStepper:
             # land on t_end; keep the step (and the factorisation) if only rounding differs
             step = ts.step_toward(s.t, step, t_end, dt)
             new, res, acc, step = self._accepted(step, ctrl)
+            self._note_mesh_quality()
             step_target = min(dt, 2.0 * step) if ctrl is None else new.dt_next
             # the last step reports t_end exactly; the clock (state.t) stays the sum of the
             # steps, which a run resumed past t_end goes on from (Simulation.resume)
@@ -546,6 +554,20 @@ class CoupledStepper:
             yield t, StepReport(t=t, dt=step, iterations=res["iterations"],
                                 force=res["force"], torque=res["torque"], acceleration=acc,
                                 error=new.error, fluid_energy=self.fluid_energy())
+
+    def _note_mesh_quality(self):
+        """Fold the mesh the step ended on into :attr:`worst_mesh`."""
+        if self.ale and self.state.nodes_n is not None:
+            angle, ratio = mesh_quality(self.state.nodes_n, self.motion.t, self.motion.area_ref)
+        else:  # a fixed mesh is as it was built
+            from meshing.quality import signed_areas
+
+            m = self.mesh
+            angle, ratio = mesh_quality(m.p, m.t, signed_areas(m.p, m.t))
+        w = self.worst_mesh
+        w["min_angle"] = min(w["min_angle"], angle)
+        w["min_area_ratio"] = min(w["min_area_ratio"], ratio)
+        w["steps"] += 1
 
     def _accepted(self, step: float, ctrl):
         """The accepted step from the current state; commits it (DEM and state)."""

@@ -65,6 +65,12 @@ def summarize(sim, hist: History) -> dict:
             "dofs": int(sim.space.N),
             "min_angle": float(st.min_angle),
         }
+        w = sim.stepper.worst_mesh  # the steps of this process (a resumed run: since then)
+        out["mesh"].update({
+            "steps_checked": w["steps"],
+            "min_angle_over_steps": float(w["min_angle"]) if w["steps"] else None,
+            "min_area_ratio_over_steps": float(w["min_area_ratio"]) if w["steps"] else None,
+        })
     if len(hist):
         out["final"] = {
             "x": hist.x[-1].tolist(),

@@ -8,7 +8,9 @@ and run for ``t_end_tau`` times ``tau_c`` or, with ``to_rest``, until the grains
 energy has fallen below ``stop_ratio`` of its peak. :func:`execute_collapse` runs one,
 continues it from the checkpoint in its folder, or reads a finished one back, and returns
 its record: the cost (CPU and wall time summed over every process that ran it, DOFs,
-phases, peak memory) and what collapse experiments report (final run-out at the mass
+phases, peak memory), the poorest mesh any step ended on (immersed runs: smallest angle
+and area ratio, over the steps counted in ``mesh_steps_checked``) and what collapse
+experiments report (final run-out at the mass
 front and the gap front, largest front Froude number, time to 90 % of the run-out, the
 run-out and kinetic-energy series).
 """
@@ -295,8 +297,13 @@ def _measure(pk, folder: Path, domain) -> dict:
                        for k in ("t_over_tau", "runout", "E_x", "E_y", "froude")}}
 
 
-def _add_cost(folder: Path, cpu: float, wall: float, dofs: list, phases: dict) -> dict:
-    """Add this process's share to the run's ``cost.json`` and return the totals."""
+def _add_cost(folder: Path, cpu: float, wall: float, dofs: list, phases: dict,
+              mesh: dict | None = None) -> dict:
+    """Add this process's share to the run's ``cost.json`` and return the totals.
+
+    ``mesh``: this process's ``summary.json`` mesh entry; its poorest mesh over the
+    steps (``min_angle_over_steps``, ``min_area_ratio_over_steps``) is folded into the
+    run's (``mesh_min_angle``, ``mesh_min_area_ratio`` over ``mesh_steps_checked``)."""
     path = folder / "cost.json"
     c: dict[str, Any] = json.loads(path.read_text()) if path.exists() else {
         "cpu_s": 0.0, "wall_s": 0.0, "processes": 0, "dofs_sum": 0, "dofs_steps": 0}
@@ -312,11 +319,18 @@ def _add_cost(folder: Path, cpu: float, wall: float, dofs: list, phases: dict) -
                            resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
         for k, v in phases.items():
             c["phases_s"][k] = c["phases_s"].get(k, 0.0) + float(v)
+        if mesh and mesh.get("steps_checked"):
+            for key, ours in (("mesh_min_angle", "min_angle_over_steps"),
+                              ("mesh_min_area_ratio", "min_area_ratio_over_steps")):
+                c[key] = min(c.get(key, float("inf")), float(mesh[ours]))
+            c["mesh_steps_checked"] = c.get("mesh_steps_checked", 0) + mesh["steps_checked"]
         path.write_text(json.dumps(c) + "\n")
     return {"cpu_s": c["cpu_s"], "wall_s": c["wall_s"], "processes": c["processes"],
             "dofs_mean": c["dofs_sum"] / c["dofs_steps"] if c["dofs_sum"] else None,
             "dofs_max": c.get("dofs_max"), "peak_mb": c.get("peak_mb"),
-            "phases_s": c["phases_s"]}
+            "phases_s": c["phases_s"],
+            **{k: c.get(k) for k in ("mesh_min_angle", "mesh_min_area_ratio",
+                                     "mesh_steps_checked")}}
 
 
 def execute_collapse(run: CollapseRun, out_dir, packings=None) -> dict:
@@ -369,7 +383,8 @@ def execute_collapse(run: CollapseRun, out_dir, packings=None) -> dict:
                     break
         phases = dict(sim.result.summary.get("wall_time", {})) if sim.result else {}
     summary = json.loads((folder / "summary.json").read_text())
-    cost = _add_cost(folder, time.process_time() - c0, time.perf_counter() - w0, dofs, phases)
+    cost = _add_cost(folder, time.process_time() - c0, time.perf_counter() - w0, dofs, phases,
+                     summary.get("mesh") if dofs else None)
     rest = (json.loads((folder / "rest.json").read_text())
             if (folder / "rest.json").exists() else None)
     if rest is not None:
@@ -388,6 +403,7 @@ def execute_collapse(run: CollapseRun, out_dir, packings=None) -> dict:
            "steps": summary.get("steps"), "remeshes": summary.get("remeshes"),
            "factorizations": summary.get("factorizations"),
            "jacobian_refreshes": summary.get("jacobian_refreshes"),
+           "retries": summary.get("retries"),
            "t_end_over_tau": summary.get("t_end", 0.0) / tau}
     if run.to_rest:
         rec["at_rest"] = rest is not None
