@@ -87,7 +87,25 @@ def progress(folder: Path, n: int, every: int) -> dict | None:
             "t_end_over_tau": float(s["t_over_tau"][-1]), "tau_c": tau, "rows_every": every,
             "series": {k: np.asarray(s[k]).tolist()
                        for k in ("t_over_tau", "runout", "E_x", "E_y", "froude")},
-            "pressure": base_pressure(folder, pk) if immersed else []}
+            "pressure": base_pressure(folder, pk) if immersed else [],
+            "so_far": so_far(folder)}
+
+
+def so_far(folder: Path) -> dict:
+    """What the run has cost and met so far: its counters (``summary.json``, as of the
+    last checkpoint or stop) and its cost over every process (``cost.json``), with the
+    poorest mesh its steps ended on since the library records it."""
+    out: dict = {}
+    if (folder / "summary.json").exists():
+        s = json.loads((folder / "summary.json").read_text())
+        out.update({k: s.get(k) for k in ("steps", "remeshes", "remesh_reasons", "retries",
+                                          "factorizations", "jacobian_refreshes", "failed")})
+    if (folder / "cost.json").exists():
+        c = json.loads((folder / "cost.json").read_text())
+        out.update({k: c.get(k) for k in ("cpu_s", "wall_s", "processes", "peak_mb",
+                                          "mesh_min_angle", "mesh_min_area_ratio",
+                                          "mesh_steps_checked")})
+    return out
 
 
 def base_pressure(folder: Path, pk) -> list:
