@@ -244,6 +244,10 @@ class CoupledStepper:
         self.mesh_centers = dem.positions.copy() if centers is None else np.array(centers)
         self.mesh_angles = dem.angles.copy() if angles is None else np.array(angles)
         self.motion = None
+        if not self.ale:  # a fixed mesh's smallest angle (:meth:`_note_mesh_quality`)
+            import meshing
+
+            self._built_angle = float(meshing.mesh_stats(built).min_angle)
         if self.ale:
             nodes = [np.unique(built.facets[:, built.boundaries[f"particle{k}"]])
                      for k in range(dem.n)]
@@ -557,13 +561,10 @@ class CoupledStepper:
 
     def _note_mesh_quality(self):
         """Fold the mesh the step ended on into :attr:`worst_mesh`."""
-        if self.ale and self.state.nodes_n is not None:
+        if self.ale:
             angle, ratio = mesh_quality(self.state.nodes_n, self.motion.t, self.motion.area_ref)
-        else:  # a fixed mesh is as it was built
-            from meshing.quality import signed_areas
-
-            m = self.mesh
-            angle, ratio = mesh_quality(m.p, m.t, signed_areas(m.p, m.t))
+        else:  # a fixed mesh is as it was built: its smallest angle, measured once
+            angle, ratio = self._built_angle, 1.0
         w = self.worst_mesh
         w["min_angle"] = min(w["min_angle"], angle)
         w["min_area_ratio"] = min(w["min_area_ratio"], ratio)
