@@ -1,18 +1,19 @@
 """Benchmark: pore flux through a touching honeycomb on several meshes.
 
-Usage: ``python benchmarks/mesh_accuracy.py [--quick] [--only NAME ...]``. Writes
-``benchmarks/results/mesh_accuracy.json``.
+Usage: ``python benchmarks/mesh_accuracy.py [--quick] [--only NAME ...] [--core 0.9]``.
+Writes ``benchmarks/results/mesh_accuracy.json`` (``mesh_accuracy_core<c>.json`` for
+another core ratio than 0.8).
 
 The case: a touching 3 x 3 honeycomb of hexagons (shadow circumradius 0.5 mm, cores
-0.8 of it, shadows touching each other and the floor) in the 20 x 10 mm box, a slow
-parabolic inflow on the left (peak 1 mm/s), no slip on the floor, the top and the
-cores, do-nothing outflow on the right; steady Stokes. The pore flux is the integral
-of ``u_x`` over the pores on the vertical line through the middle column's centres:
-the fluid intervals from the floor to the column's top core (Gauss-Legendre on
-each). The strip from that core up to the top of the block's shadows (0.087 mm, open
-to the flow over the block, not a pore) is recorded apart. Every mesh's fluxes are
-compared with the finest mesh's, whose own convergence is recorded (against the
-mesh before it).
+0.8 of it or ``--core`` of it, shadows touching each other and the floor) in the 20 x
+10 mm box, a slow parabolic inflow on the left (peak 1 mm/s), no slip on the floor,
+the top and the cores, do-nothing outflow on the right; steady Stokes. The pore flux
+is the integral of ``u_x`` over the pores on the vertical line through the middle
+column's centres: the fluid intervals from the floor to the column's top core (Gauss-
+Legendre on each). The strip from that core up to the top of the block's shadows
+(0.087 mm, open to the flow over the block, not a pore) is recorded apart. Every
+mesh's fluxes are compared with the finest mesh's, whose own convergence is recorded
+(against the mesh before it).
 """
 
 from __future__ import annotations
@@ -37,14 +38,16 @@ GAUSS = 40           # Gauss points per fluid interval
 
 
 def hexagon(c, r=CORE * R):
+    """The regular hexagon of circumradius ``r`` about ``c``: ``(2, 6)``."""
     th = 2.0 * np.pi * np.arange(6) / 6
     return np.vstack([c[0] + r * np.cos(th), c[1] + r * np.sin(th)])
 
 
-def honeycomb(nx=3, ny=3, x0=X0):
-    """Cores of hexagons whose shadows tile the floor and each other (all touching)."""
+def honeycomb(nx=3, ny=3, x0=X0, core=CORE):
+    """Cores (``core`` of the shadow) of hexagons whose shadows tile the floor and each
+    other (all touching)."""
     a = R * np.sqrt(3.0) / 2.0
-    return [hexagon((x0 + i * 1.5 * R, a + 2 * a * j + (a if i % 2 else 0.0)))
+    return [hexagon((x0 + i * 1.5 * R, a + 2 * a * j + (a if i % 2 else 0.0)), core * R)
             for i in range(nx) for j in range(ny)]
 
 
@@ -111,8 +114,8 @@ REFERENCE, CHECK = "field 0.00625", "field 0.0125"
 them, so no outline edge split) and the mesh its convergence is checked against."""
 
 
-def run(names, output):
-    cores = honeycomb()
+def run(names, output, core=CORE):
+    cores = honeycomb(core=core)
     rows = {}
     for name in names:
         kind, opts = MESHES[name]
@@ -140,7 +143,7 @@ def run(names, output):
                   + f" %), strip over the block {100 * r['strip_error']:+7.2f} %")
     out = {"benchmark": "mesh_accuracy", "machine": platform.platform(),
            "loadavg": list(os.getloadavg()), "case": " ".join(__doc__.split("\n\n")[1].split()),
-           "reference": REFERENCE, "reference_check": CHECK, "results": rows}
+           "core_ratio": core, "reference": REFERENCE, "reference_check": CHECK, "results": rows}
     if output:
         Path(output).parent.mkdir(parents=True, exist_ok=True)
         Path(output).write_text(json.dumps(out, indent=2) + "\n")
@@ -152,11 +155,16 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--only", nargs="*", default=None, help="mesh names to run")
     ap.add_argument("--quick", action="store_true", help="the default mesh only, no file")
-    ap.add_argument("--output",
-                    default=str(Path(__file__).parent / "results" / "mesh_accuracy.json"))
+    ap.add_argument("--core", type=float, default=CORE, help="core over shadow, in (0, 1)")
+    ap.add_argument("--output", default=None, help="default: results/mesh_accuracy.json, "
+                    "or mesh_accuracy_core<c>.json for another --core")
     args = ap.parse_args(argv)
+    if not 0.0 < args.core < 1.0:
+        ap.error(f"--core {args.core!r}: must be in (0, 1)")
+    output = args.output or str(Path(__file__).parent / "results" / (
+        "mesh_accuracy.json" if args.core == CORE else f"mesh_accuracy_core{args.core:g}.json"))
     names = ["field 0.2"] if args.quick else (args.only or list(MESHES))
-    run(names, None if args.quick or args.only else args.output)
+    run(names, None if args.quick or args.only else output, core=args.core)
 
 
 if __name__ == "__main__":
