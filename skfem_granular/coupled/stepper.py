@@ -244,15 +244,15 @@ class CoupledStepper:
         self.mesh_centers = dem.positions.copy() if centers is None else np.array(centers)
         self.mesh_angles = dem.angles.copy() if angles is None else np.array(angles)
         self.motion = None
-        if not self.ale:  # a fixed mesh's smallest angle (:meth:`_note_mesh_quality`)
-            import meshing
-
-            self._built_angle = float(meshing.mesh_stats(built).min_angle)
         if self.ale:
             nodes = [np.unique(built.facets[:, built.boundaries[f"particle{k}"]])
                      for k in range(dem.n)]
             poses = np.vstack([self.mesh_centers, self.mesh_angles[None, :]])
             self.motion = MeshMotion(built, nodes, poses, slide_walls=ALE_SLIDE_WALLS)
+        else:  # a fixed mesh's smallest angle, once (:meth:`_note_mesh_quality`)
+            import meshing
+
+            self._built_angle = float(meshing.mesh_stats(built).min_angle)
         self.timings["assembly"] += time.perf_counter() - t0
 
     def _remesh_if_moved(self, force: bool = False):
