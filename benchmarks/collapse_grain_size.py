@@ -29,8 +29,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -45,17 +43,12 @@ ASPECT = 0.8
 
 
 def column(n: int, state: str, seed: int, d_mean: float):
-    """The column of ``d_mean`` grains, prepared once and kept in ``results/packings``."""
-    from skfem_granular.packing import load_packing, prepare_column
+    """The column of ``d_mean`` grains (stiffness scaled with the diameter), prepared once
+    and kept in ``results/packings`` (:func:`skfem_granular.studies.cached_packing`)."""
+    from skfem_granular.studies import cached_packing
 
-    path = PACKINGS / f"{state}_a{ASPECT:g}_n{n}_seed{seed}_d{d_mean * 1e3:g}mm.npz"
-    if path.exists():
-        return load_packing(path)
-    pk = prepare_column(n, ASPECT, state, seed=seed, d_mean=d_mean, E=1e6 * d_mean / 1e-3)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".npz", dir=PACKINGS)
-    os.close(fd)
-    os.replace(pk.save(tmp), path)
-    return pk
+    return cached_packing(n, state, seed, PACKINGS, aspect=ASPECT, d_mean=d_mean,
+                          E=1e6 * d_mean / 1e-3)
 
 
 def run_name(n, state, core, seed, d_mean) -> str:
@@ -88,7 +81,8 @@ def run(n: int, state: str, core: float, seed: int, d_mean: float, tau: float) -
 
 
 def energy_record(t_over_tau, E) -> dict:
-    """When the kinetic energy peaks, and the fraction of the peak left at 4 and 5 tau_c."""
+    """When the kinetic energy peaks, and the fraction of the peak left at 4, 5 and 6 tau_c
+    (None past the run's end)."""
     t, E = np.asarray(t_over_tau), np.asarray(E)
     i = int(np.argmax(E))
 
@@ -102,7 +96,13 @@ def energy_record(t_over_tau, E) -> dict:
 
 def report(n: int, state: str, core: float, d_mean: float) -> dict:
     """The record of the runs of ``d_mean`` grains beside the 1 mm runs of the matrix."""
-    from skfem_granular.collapse import collapse_series, column_scene, history_columns
+    from skfem_granular.collapse import (
+        collapse_series,
+        column_scene,
+        history_columns,
+        realisations,
+        time_scale,
+    )
 
     runs = []
     for folder in sorted(OUT.glob(run_name(n, state, core, "*", d_mean))):
@@ -115,8 +115,7 @@ def report(n: int, state: str, core: float, d_mean: float) -> dict:
         every_fifth = np.unique(np.r_[np.arange(0, s["t"].size, 5), s["t"].size - 1])
         runs.append({"run": folder.name, "seed": seed, "d_mean": pk.d_mean,
                      "d_max": pk.d_max, "E": pk.E, "solid_fraction": pk.solid_fraction,
-                     "aspect": pk.aspect, "H0": pk.height, "tau_c": float(
-                         np.sqrt(pk.height / 9.81)),
+                     "aspect": pk.aspect, "H0": pk.height, "tau_c": time_scale(pk),
                      "status": summary.get("status"), "steps": summary.get("steps"),
                      "retries": summary.get("retries"), "remeshes": summary.get("remeshes"),
                      "cpu_s": cost["cpu_s"], "dofs_mean": float(np.mean(cost["dofs"])),
@@ -133,11 +132,9 @@ def report(n: int, state: str, core: float, d_mean: float) -> dict:
            for r in matrix if r["state"] == state and r["medium"] == "immersed"
            and r["core_ratio"] == core] if n == 200 else []
 
-    def stats(rs, key):
-        v = np.array([r[key] for r in rs if r.get(key) is not None], float)
-        return {"mean": float(v.mean()), "sd": float(v.std(ddof=1)) if v.size > 1 else None,
-                "min": float(v.min()), "max": float(v.max()), "runs": int(v.size)} \
-            if v.size else None
+    def stats(rs, key):  # over the seeds that reached the time asked for
+        v = [r[key] for r in rs if r.get(key) is not None]
+        return realisations(v) if v else None
 
     return {"benchmark": "collapse_grain_size", "grains": n, "state": state,
             "core_ratio": core, "aspect": ASPECT, "runs": runs, "reference_1mm": ref,

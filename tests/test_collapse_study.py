@@ -36,6 +36,22 @@ def packings(tmp_path_factory):
     return where
 
 
+def test_cached_packing_of_other_grains_is_named_by_them(packings, tmp_path):
+    """Grains of another size and stiffness are a file of their own, the column that
+    prepare_column gives for them bit for bit; the defaults keep the plain name."""
+    from skfem_granular.packing import prepare_column
+
+    assert {"dense_a0.8_n30_seed0.npz", "dense_a0.8_n30_seed1.npz"} <= {
+        p.name for p in packings.glob("*.npz")}
+    pk = cached_packing(30, "dense", 0, tmp_path, d_mean=1.5e-3, E=1.5e6)
+    assert [p.name for p in tmp_path.glob("*.npz")] == ["dense_a0.8_n30_seed0_d1.5mm_E1.5e+06.npz"]
+    ref = prepare_column(30, 0.8, "dense", seed=0, d_mean=1.5e-3, E=1.5e6)
+    assert (pk.d_mean, pk.E) == (1.5e-3, 1.5e6) and pk == ref
+    assert all(np.array_equal(a, b) for a, b in zip(pk.outlines, ref.outlines, strict=True))
+    again = cached_packing(30, "dense", 0, tmp_path, d_mean=1.5e-3, E=1.5e6)  # read back
+    assert again == pk and len(list(tmp_path.glob("*.npz"))) == 1
+
+
 @pytest.fixture(scope="module")
 def inline(packings, tmp_path_factory):
     runs = plan_collapse(30, states=["dense"], media=["dry"], seeds=[0, 1], **DRY)

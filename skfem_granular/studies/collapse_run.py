@@ -198,14 +198,16 @@ _DECIDING = ("n", "aspect", "t_end_tau", "to_rest", "stop_ratio", "t_min_tau")
 
 # ---------------------------------------------------------------------------------- one run
 def cached_packing(n: int, state: str, seed: int, packings, *, aspect: float = 0.8,
-                   t_max: float = 3.0):
+                   t_max: float = 3.0, d_mean: float = 1e-3, E: float = 1e6):
     """The column of ``n`` grains prepared once, then read back.
 
     Parameters
     ----------
-    n, state, seed, aspect
+    n, state, seed, aspect, d_mean, E
         As :func:`~skfem_granular.packing.prepare_column` takes them (12-gon near-disks,
-        its defaults otherwise); they name the file ``<state>_a<aspect>_n<n>_seed<seed>.npz``.
+        its defaults otherwise); they name the file
+        ``<state>_a<aspect>_n<n>_seed<seed>.npz``, with ``_d<d_mean in mm>mm`` and
+        ``_E<E>`` before ``.npz`` where they are not the defaults (1 mm, 1e6 N/m).
     packings : str or Path
         The folder of prepared columns.
     t_max : float
@@ -226,10 +228,12 @@ def cached_packing(n: int, state: str, seed: int, packings, *, aspect: float = 0
 
     from ..packing import load_packing, prepare_column
 
-    path = Path(packings) / f"{state}_a{aspect:g}_n{n}_seed{seed}.npz"
+    name = (f"{state}_a{aspect:g}_n{n}_seed{seed}" + (f"_d{d_mean * 1e3:g}mm" if d_mean != 1e-3
+                                                      else "") + (f"_E{E:g}" if E != 1e6 else ""))
+    path = Path(packings) / f"{name}.npz"
     if path.exists():
         return load_packing(path)
-    pk = prepare_column(n, aspect, state, seed=seed, t_max=t_max)
+    pk = prepare_column(n, aspect, state, seed=seed, t_max=t_max, d_mean=d_mean, E=E)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".npz", dir=path.parent)
     os.close(fd)
