@@ -127,24 +127,24 @@ def main(argv=None) -> None:
         sys.exit(f"run: {args.run} has no checkpoint.npz")
     if args.steps < 1:
         sys.exit(f"--steps = {args.steps}: must be at least 1")
-    import skfem_granular.coupled.stepper as stepper
+    import skfem_granular.coupled.mesh_keeper as keeper
     from skfem_granular.coupled import ale_rules
     from skfem_granular.simulation import Simulation
 
     bounds = (ale_rules.ALE_MIN_ANGLE, ale_rules.ALE_MIN_AREA_RATIO)
-    rule = stepper.remesh_reason
+    rule = keeper.remesh_reason
     records: list[dict] = []
 
-    def recorded(motion, nodes_n, moved, q, q_prev, dt_ratio, *rest):
-        reason = rule(motion, nodes_n, moved, q, q_prev, dt_ratio, *rest)
+    def recorded(motion, state, moved, q, dt_ratio, *rest):
+        reason = rule(motion, state, moved, q, dt_ratio, *rest)
         if reason is not None and dt_ratio is not None:
             records.append({"step": step[0] + 1, "reason": reason,
                             "triangles": int(motion.t.shape[1]),
-                            **survey(motion, q, q_prev, dt_ratio, bounds)})
+                            **survey(motion, q, state.q_prev, dt_ratio, bounds)})
             print(json.dumps(records[-1]), flush=True)
         return reason
 
-    stepper.remesh_reason = recorded  # the stepper asks its module for the rule
+    keeper.remesh_reason = recorded  # the mesh keeper asks its module for the rule
     step = [0]
     with tempfile.TemporaryDirectory(prefix="remesh_triggers_") as tmp:
         folder = Path(tmp) / args.run.name

@@ -7,7 +7,7 @@ default mesh before the rule), ``--repeats`` times each, interleaved. Records wh
 histories are bit-identical (and the largest relative difference of every column), the
 largest particle Reynolds number, the remeshes, and the CPU time (``time.process_time``)
 of every run. CPU times of whole runs vary by 10-20 % on a shared machine, so the work the
-rule adds (one Reynolds number per particle before every step: ``_wake_options``) is also
+rule adds (one Reynolds number per particle before every step: ``MeshKeeper._wake_options``) is also
 timed by itself, ``--calls`` times, and reported as a fraction of a run's CPU time.
 
 Writes ``benchmarks/results/wake_quiet.json``.
@@ -51,7 +51,7 @@ def check_cost(name: str, calls: int) -> float:
     st = Simulation(sc).stepper
     c0 = time.process_time()
     for _ in range(calls):
-        st._wake_options()
+        st.keeper._wake_options()
     return (time.process_time() - c0) / calls
 
 

@@ -20,7 +20,7 @@ caps the growth ratio below that.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,6 +44,68 @@ def bdf2_coefficients(dt: float, dt_prev: float | None) -> tuple[float, float, f
         return 1.0 / dt, -1.0 / dt, 0.0
     w = dt / dt_prev
     return (1 + 2 * w) / (dt * (1 + w)), -(1 + w) / dt, w * w / (dt * (1 + w))
+
+
+@dataclass(frozen=True)
+class BDF2:
+    """One step's variable-step BDF2 formula (backward Euler without ``dt_prev``).
+
+    The one place where ``a0 x_{n+1} + a1 x_n + a2 x_{n-1}`` is written: the time
+    derivative of fluid velocities, rigid velocities, poses and mesh vertices alike.
+    Without ``dt_prev`` the ``x_{n-1}`` term is absent and ``x_prev`` is not read.
+
+    Parameters
+    ----------
+    dt : float
+        The step.
+    dt_prev : float or None
+        The step before it (None: backward Euler).
+
+    Examples
+    --------
+    >>> f = BDF2(0.1, 0.1)
+    >>> f.a0, f.a1, f.a2
+    (15.0, -20.0, 5.0)
+    >>> f.derivative(2.0, 1.0, 0.0)   # d/dt of x = 10 t at t = 0.2
+    10.0
+    """
+
+    dt: float
+    dt_prev: float | None = None
+    a0: float = field(init=False, repr=False)
+    a1: float = field(init=False, repr=False)
+    a2: float = field(init=False, repr=False)
+
+    def __post_init__(self):
+        a0, a1, a2 = bdf2_coefficients(self.dt, self.dt_prev)
+        object.__setattr__(self, "a0", a0)
+        object.__setattr__(self, "a1", a1)
+        object.__setattr__(self, "a2", a2)
+
+    @property
+    def coefficients(self) -> tuple[float, float, float]:
+        """``(a0, a1, a2)`` (:func:`bdf2_coefficients`)."""
+        return self.a0, self.a1, self.a2
+
+    @property
+    def euler(self) -> bool:
+        """Whether this is a backward-Euler step (no ``x_{n-1}`` term)."""
+        return self.dt_prev is None
+
+    def history(self, x_n, x_prev):
+        """``a1 x_n + a2 x_{n-1}``: the part of the derivative known before the step."""
+        _, a1, a2 = self.coefficients
+        return a1 * x_n + (0.0 if self.dt_prev is None else a2 * x_prev)
+
+    def derivative(self, x_new, x_n, x_prev):
+        """``a0 x_{n+1} + a1 x_n + a2 x_{n-1}``: the time derivative at ``t_{n+1}``."""
+        a0, a1, a2 = self.coefficients
+        return a0 * x_new + a1 * x_n + (0.0 if self.dt_prev is None else a2 * x_prev)
+
+    def solve(self, rate, x_n, x_prev):
+        """``x_{n+1}`` whose derivative is ``rate``: ``(rate - a1 x_n - a2 x_{n-1}) / a0``."""
+        a0, a1, a2 = self.coefficients
+        return (rate - a1 * x_n - (0.0 if self.dt_prev is None else a2 * x_prev)) / a0
 
 
 def predict(u_n: np.ndarray, du_n: np.ndarray, du_prev: np.ndarray | None, dt: float,

@@ -196,7 +196,7 @@ def test_generic_format_round_trips_new_dataclass_fields(tmp_path):
     from skfem_granular.io import plain
     from skfem_granular.simulation import checkpoint
 
-    @dataclass
+    @dataclass(frozen=True)
     class GrownState(CoupledState):  # the moving mesh's extra fields, made up
         mesh_velocity: np.ndarray | None = None
         node_ids: np.ndarray | None = None

@@ -61,8 +61,8 @@ def test_first_mesh_rebuilt_before_the_first_step(reference):
     up = np.array([[0.0], [0.1e-3]])
     cores = [c + up for c in dem.core_outlines()]
     first = meshing.build("graded", sc.domain, cores)
-    st = CoupledStepper(sc, dem, first, contacts_active=False, centers=dem.positions + up,
-                        angles=dem.angles)
+    st = CoupledStepper(sc, dem, first, contacts_active=False,
+                        poses=np.vstack([dem.positions + up, dem.angles[None, :]]))
     v, u = run(st)
     assert st.remeshes == 1 and st.remesh_reasons["travel"] == 1
     _, _, v_ref, u_ref = reference

@@ -5,8 +5,9 @@ import pytest
 from helpers import annulus, box, regular_polygon
 
 import skfem_granular as sg
-from skfem_granular.coupled import MonolithicCoupling, PartitionedCoupling
+from skfem_granular.coupled import MonolithicCoupling, PartitionedCoupling, StepProblem
 from skfem_granular.fluid import ConvergenceError
+from skfem_granular.timestep import BDF2
 
 A_IN, B_OUT, G = 1e-3, 2e-3, 9.81
 N_SEG = 64
@@ -34,8 +35,9 @@ def _release(space, area, rho_p, cls=MonolithicCoupling, dt=1e-5, **kw):
     m = rho_p * area
     c = cls(space, fluid, {"wall": (0.0, 0.0)}, np.zeros((2, 1)), [m], [0.5 * m * A_IN**2], **kw)
     F_ext = np.array([[0.0], [-(rho_p - fluid.density) * area * G]])
-    res = c.step(dt, None, np.zeros(space.nu), None, np.zeros((3, 1)), None, F_ext, np.zeros(1), dt)
-    return res["xi"][1, 0] / dt, res
+    res = c.step(StepProblem(bdf2=BDF2(dt), t_new=dt, u_n=np.zeros(space.nu),
+                             xi_n=np.zeros((3, 1)), F_ext=F_ext, T_ext=np.zeros(1)))
+    return res.xi[1, 0] / dt, res
 
 
 @pytest.mark.parametrize("ratio", [2.65, 1.1, 0.5])
@@ -47,7 +49,7 @@ def test_added_mass_at_release_monolithic(released, ratio):
     # the reaction force balances the particle's momentum: m a = F_fluid + F_ext
     m = 1000.0 * ratio * area
     F_ext = -(1000.0 * ratio - 1000.0) * area * G
-    assert m * acc == pytest.approx(res["force"][1, 0] + F_ext, rel=1e-9)
+    assert m * acc == pytest.approx(res.force[1, 0] + F_ext, rel=1e-9)
 
 
 def test_added_mass_converges_with_smaller_steps(released):
@@ -108,11 +110,12 @@ def test_faxen_drag_through_coupled_path():
     )
     xi = np.array([[1.0], [0.0], [0.0]])
     dt = 1e4  # the unsteady term vanishes: one step is the steady Stokes problem
-    res = c.step(dt, None, np.zeros(space.nu), None, xi, None, np.zeros((2, 1)), np.zeros(1), dt)
-    assert res["xi"][0, 0] == pytest.approx(1.0, rel=1e-6)
-    assert -res["force"][0, 0] == pytest.approx(faxen(k), rel=3e-3)
+    res = c.step(StepProblem(bdf2=BDF2(dt), t_new=dt, u_n=np.zeros(space.nu), xi_n=xi,
+                             F_ext=np.zeros((2, 1)), T_ext=np.zeros(1)))
+    assert res.xi[0, 0] == pytest.approx(1.0, rel=1e-6)
+    assert -res.force[0, 0] == pytest.approx(faxen(k), rel=3e-3)
     # no torque on a centred cylinder, up to the mesh's asymmetry (relative to F a)
-    assert abs(res["torque"][0]) < 1e-4 * faxen(k) * k
+    assert abs(res.torque[0]) < 1e-4 * faxen(k) * k
 
 
 @pytest.mark.parametrize("ratio", [1.1, 0.5])
@@ -138,8 +141,8 @@ def test_a_dropped_coupling_and_its_space_are_freed_without_the_cycle_collector(
     moved = space.moved(mesh.p + 1e-3 * np.sin(np.pi * mesh.p) * (mesh.p > 0))
     c = MonolithicCoupling(space, sg.Fluid(1.0, 1.0), {"wall": (0.0, 0.0)},
                            np.array([[0.5], [0.5]]), [1.0], [1.0])
-    c.step(1e-2, None, np.zeros(space.nu), None, np.zeros((3, 1)), None,
-           np.array([[0.0], [-1.0]]), np.zeros(1), 1e-2)
+    c.step(StepProblem(bdf2=BDF2(1e-2), t_new=1e-2, u_n=np.zeros(space.nu),
+                       xi_n=np.zeros((3, 1)), F_ext=np.array([[0.0], [-1.0]]), T_ext=np.zeros(1)))
     c.move(moved, np.array([[0.5], [0.5]]), np.zeros(space.nu))
     alive = [weakref.ref(o) for o in (c, c.factors, space, moved, c.op, space.convection)]
     enabled = gc.isenabled()

@@ -2,6 +2,8 @@
 the fluid turns, the same mesh for the same flow, a clear error on a mesh kind that
 takes no outside size."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -34,8 +36,8 @@ def _remeshed(sizing):
     sim = _sim("field")
     st = sim.stepper
     st.flow_sizing = sizing
-    st.state.u_n = _vortex(st.space)
-    st._remesh_if_moved(force=True)
+    st.state = replace(st.state, u_n=_vortex(st.space))
+    st.remesh()
     return st.mesh, st
 
 
@@ -55,4 +57,4 @@ def test_flow_sizing_needs_a_field_mesh():
     sim = _sim("graded")
     sim.stepper.flow_sizing = FlowSizing()
     with pytest.raises(ValueError, match="flow_sizing: needs a 'field' mesh"):
-        sim.stepper._remesh_if_moved(force=True)
+        sim.stepper.remesh()

@@ -76,7 +76,7 @@ def _remeshed(velocity, **mesh):
     sim = Simulation(_scene(mesh={"kind": "graded", **mesh}))
     st = sim.stepper
     st.dem.velocities[...] = np.asarray(velocity, dtype=float)[:, None]
-    st._remesh_if_moved(force=True)
+    st.remesh()
     return st
 
 
@@ -101,7 +101,7 @@ def test_wake_remesh_grades_finer_and_goes_back_when_quiet():
     behind = lambda m: int(np.sum((m.p[1] > 2.5e-3) & (m.p[1] < 6.5e-3)))  # noqa: E731
     assert behind(st.mesh) > 1.5 * behind(default.mesh)
     st.dem.velocities[...] = 0.0
-    st._remesh_if_moved(force=True)
+    st.remesh()
     np.testing.assert_array_equal(st.mesh.p, default.mesh.p)
 
 
@@ -169,13 +169,13 @@ def test_a_wake_starting_remeshes_at_once():
     threshold: the next step's remesh check builds the wake's circles (reason ``wake``);
     then nothing more until a regular reason."""
     st = Simulation(_scene()).stepper
-    st._remesh_if_moved()
+    st.remesh_if_needed()
     assert st.remeshes == 0                       # at rest: nothing to do
     st.dem.velocities[1] = -_speed(1.2 * WAKE_REYNOLDS)
-    st._remesh_if_moved()
+    st.remesh_if_needed()
     assert st.remeshes == 1 and st.remesh_reasons["wake"] == 1
     assert st.meshed.recipe.options["sigma"] == WAKE_SIGMA
-    st._remesh_if_moved()
+    st.remesh_if_needed()
     assert st.remeshes == 1
 
 

@@ -12,16 +12,24 @@
   Reynolds number says a wake matters; :mod:`~skfem_granular.coupled.flow_size`: element
   sizes from the flow (an option of the remesh);
 - :mod:`~skfem_granular.coupled.state`: the BDF2 histories and the per-step report;
-- :mod:`~skfem_granular.coupled.stepper`: :class:`CoupledStepper`, which owns the DEM, the
-  coupling, the mesh and the remeshing and advances them (``for t, step in stepper.evolve()``).
+- :mod:`~skfem_granular.coupled.problem`: what a coupling solves in one step and its solution;
+- :mod:`~skfem_granular.coupled.forcing`: weight, callbacks and the DEM's contact substeps;
+- :mod:`~skfem_granular.coupled.mesh_keeper`: the mesh in use, the coupling on it, its
+  motion and the remesh rules (:mod:`~skfem_granular.coupled.ale_rules`,
+  :mod:`~skfem_granular.coupled.landing`);
+- :mod:`~skfem_granular.coupled.attempt`: one step tried, not taken, and its error estimate;
+- :mod:`~skfem_granular.coupled.stepper`: :class:`CoupledStepper`, the loop and the step-size
+  policy (``for t, step in stepper.evolve()``).
 """
 
 from .monolithic import MonolithicCoupling
 from .partitioned import PartitionedCoupling
+from .problem import StepProblem, StepSolution
 from .rigid import RigidParticles
 from .state import CoupledState, StepReport
 from .stepper import CoupledStepper, SimulationError
 from .transfer import FieldTransfer, lag
 
 __all__ = ["CoupledState", "CoupledStepper", "FieldTransfer", "MonolithicCoupling",
-           "PartitionedCoupling", "RigidParticles", "SimulationError", "StepReport", "lag"]
+           "PartitionedCoupling", "RigidParticles", "SimulationError", "StepProblem",
+           "StepReport", "StepSolution", "lag"]

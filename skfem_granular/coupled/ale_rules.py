@@ -5,7 +5,7 @@ step (``MonolithicCoupling.step(geometry=...)``) puts the mesh where its iterate
 puts the particles; :func:`remesh_reason` is the rule that decides, before a
 step, whether the moved mesh is still good enough. Both act on a
 :class:`~skfem_granular.coupled.mesh_motion.MeshMotion`; the
-:class:`~skfem_granular.coupled.stepper.CoupledStepper` owns the state they read.
+:class:`~skfem_granular.coupled.mesh_keeper.MeshKeeper` owns it.
 """
 
 from __future__ import annotations
@@ -44,9 +44,8 @@ ALE_SLIDE_WALLS = True
 ALE_POSE_TOL = 1e-8
 
 
-def step_geometry(motion, reference_space, nodes_n, nodes_prev, bdf2, q_n, q_prev, q_fixed,
-                  radius, edge, t: float) -> Callable:
-    """The mesh-motion callback of one step (see ``MonolithicCoupling.step``).
+def step_geometry(motion, reference_space, state, bdf2, q_n, q_fixed, cores) -> Callable:
+    """The mesh-motion callback of one step (:attr:`StepProblem.geometry`).
 
     The poses at the end of the step follow from the rigid velocities by the BDF2
     formula (or are ``q_fixed``, the DEM's, with contacts); the vertices follow the
@@ -58,19 +57,17 @@ def step_geometry(motion, reference_space, nodes_n, nodes_prev, bdf2, q_n, q_pre
         The mesh's motion (vertex positions for poses).
     reference_space : TaylorHood
         The discretisation on the mesh as built.
-    nodes_n, nodes_prev : (2, nv) ndarray
-        Vertex positions at ``t_n`` and ``t_{n-1}`` (``nodes_prev`` unused when the
-        step is backward Euler).
-    bdf2 : (a0, a1, a2)
-        The step's BDF2 (or backward-Euler, ``a2 = 0``) coefficients.
-    q_n, q_prev : (3, K) ndarray
-        Poses at ``t_n`` and ``t_{n-1}`` (``q_prev`` None for backward Euler).
+    state : CoupledState
+        The state the step starts from: its time, vertex positions (``nodes_n``,
+        ``nodes_prev``) and poses at ``t_{n-1}`` (``q_prev``).
+    bdf2 : BDF2
+        The step's formula.
+    q_n : (3, K) ndarray
+        Poses at ``t_n``.
     q_fixed : (3, K) ndarray or None
         Poses at the end of the step when they are known beforehand (the DEM's).
-    radius, edge : (K,) ndarray
-        Bounding radii and outline edge lengths of the particles.
-    t : float
-        Time at the start of the step (for messages).
+    cores : CoreSizes
+        The particles' bounding radii and outline edge lengths.
 
     Returns
     -------
@@ -80,19 +77,16 @@ def step_geometry(motion, reference_space, nodes_n, nodes_prev, bdf2, q_n, q_pre
         Raises ConvergenceError when the poses would invert a triangle (the step is
         then halved like an unconverged one).
     """
-    a0, a1, a2 = bdf2
-    nodes_prev = nodes_n if nodes_prev is None else nodes_prev
-    tol = ALE_POSE_TOL * float(edge.min())
+    nodes_n = state.nodes_n
+    nodes_prev = nodes_n if state.nodes_prev is None else state.nodes_prev
+    tol = ALE_POSE_TOL * float(cores.edge.min())
     used = {"q": None}
 
     def geometry(xi):
-        if q_fixed is not None:
-            q = q_fixed
-        else:
-            q = (xi - a1 * q_n - (a2 * q_prev if q_prev is not None else 0.0)) / a0
+        q = q_fixed if q_fixed is not None else bdf2.solve(xi, q_n, state.q_prev)
         if used["q"] is not None:
             change = (np.abs(q[:2] - used["q"][:2]).max(axis=0)
-                      + np.abs(q[2] - used["q"][2]) * radius)
+                      + np.abs(q[2] - used["q"][2]) * cores.radius)
             if change.max() <= tol:
                 return None
         used["q"] = q
@@ -100,29 +94,30 @@ def step_geometry(motion, reference_space, nodes_n, nodes_prev, bdf2, q_n, q_pre
         try:
             space = reference_space.moved(nodes)
         except ValueError as exc:  # an iterate would invert a triangle: a smaller step
-            raise ConvergenceError(f"step at t={t:.6g}: {exc}") from exc
-        wv = a0 * nodes + a1 * nodes_n + (a2 * nodes_prev if a2 != 0.0 else 0.0)
-        return space, q[:2], space.vertex_field(wv)
+            raise ConvergenceError(f"step at t={state.t:.6g}: {exc}") from exc
+        return space, q[:2], space.vertex_field(bdf2.derivative(nodes, nodes_n, nodes_prev))
 
     return geometry
 
 
-def remesh_reason(motion, nodes_n, moved, q, q_prev, dt_ratio: float | None, radius, edge,
+def remesh_reason(motion, state, moved, q, dt_ratio: float | None, cores,
                   remesh_travel: float) -> str | None:
     """Why to remesh the moving mesh now, or None.
 
     ``"travel"``: a particle has travelled ``remesh_travel`` radii (``moved``, per
     particle) from where its mesh was built; ``"angle"`` / ``"area"``: the mesh at
-    ``nodes_n`` has its smallest angle or area ratio below :data:`ALE_MIN_ANGLE` /
+    ``state.nodes_n`` has its smallest angle or area ratio below :data:`ALE_MIN_ANGLE` /
     :data:`ALE_MIN_AREA_RATIO`; ``"ahead"``: it would after :data:`ALE_LOOK_AHEAD`
-    steps, the poses ``q`` extrapolated from ``q_prev`` with ``dt_ratio`` (the largest
-    step over the last one; None: no history, not checked).
+    steps, the poses ``q`` extrapolated from ``state.q_prev`` with ``dt_ratio`` (the
+    largest step over the last one; None: no history, not checked). ``cores``: the
+    particles' radii and outline edges (:class:`~.build.CoreSizes`).
     """
+    radius, edge = cores.radius, cores.edge
     if np.any(moved > remesh_travel * radius):
         return "travel"
-    if nodes_n is None:
+    if state.nodes_n is None:
         return None
-    angle, ratio = mesh_quality(nodes_n, motion.t, motion.area_ref)
+    angle, ratio = mesh_quality(state.nodes_n, motion.t, motion.area_ref)
     if angle < ALE_MIN_ANGLE:
         return "angle"
     if ratio < ALE_MIN_AREA_RATIO:
@@ -131,7 +126,7 @@ def remesh_reason(motion, nodes_n, moved, q, q_prev, dt_ratio: float | None, rad
         return None
     # checked only when that step moves a particle by more than a tenth of an outline
     # edge, or the mesh is already within 1.5x of the thresholds
-    ahead = q + ALE_LOOK_AHEAD * (q - q_prev) * dt_ratio
+    ahead = q + ALE_LOOK_AHEAD * (q - state.q_prev) * dt_ratio
     reach = lag(q[:2], q[2], ahead[:2], ahead[2], radius)
     if (np.all(reach < 0.1 * edge) and angle > 1.5 * ALE_MIN_ANGLE
             and ratio > 1.5 * ALE_MIN_AREA_RATIO):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..dem.polygon import polygon_area
@@ -17,6 +19,39 @@ def outline_edge(outline: np.ndarray, delta_l: float | None) -> float:
     """Mesh edge length on an outline: ``delta_l`` or the longest polygon edge."""
     e = np.linalg.norm(np.roll(outline, -1, axis=1) - outline, axis=0).max()
     return float(min(e, delta_l) if delta_l else e)
+
+
+@dataclass(frozen=True)
+class CoreSizes:
+    """Body-frame measures of each particle's core outline (the outline the fluid sees).
+
+    Computed from the outlines in the particles' own frame, so they are the same numbers
+    whatever the current pose (a resumed run sees bit-identical buoyancy).
+
+    Attributes
+    ----------
+    area : (K,) ndarray
+        Core areas (buoyancy).
+    edge : (K,) ndarray
+        Mesh edge length on each outline (:func:`outline_edge`).
+    radius : (K,) ndarray
+        Bounding radius of each core about its vertices' mean.
+    """
+
+    area: np.ndarray
+    edge: np.ndarray
+    radius: np.ndarray
+
+    @classmethod
+    def of(cls, dem, delta_l: float | None) -> CoreSizes:
+        """The sizes of the cores of ``dem``'s particles (``delta_l``: the mesh's edge
+        length on outlines, None for the polygons' own edges)."""
+        p = dem.particles
+        cores = [p.core_local[k, : p.core_count[k]].T for k in range(dem.n)]
+        return cls(area=outline_areas(cores),
+                   edge=np.array([outline_edge(c, delta_l) for c in cores]),
+                   radius=np.array([np.linalg.norm(c - c.mean(axis=1, keepdims=True),
+                                                   axis=0).max() for c in cores]))
 
 
 def build_mesh(scene, cores):

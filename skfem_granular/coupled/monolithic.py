@@ -50,11 +50,11 @@ import weakref
 import numpy as np
 import scipy.sparse as sp
 
-from .. import timestep as ts
 from ..fluid.errors import ConvergenceError
 from ..fluid.factor_cache import FactorCache
 from ..fluid.linsolve import make_solver
 from ..fluid.newton import ChordStall, chord_converged, newton_iterate
+from .problem import StepProblem, StepSolution
 from .rigid import RigidParticles
 
 #: A factorisation made anew (new ``a0``; a new mesh the stepper marks so) is of the Newton
@@ -290,6 +290,19 @@ class MonolithicCoupling(RigidParticles):
         self.timings["assembly"] += time.perf_counter() - t0
         self.factors.factorize_system(a0, system)
 
+    def refactor(self, record: dict, reference_space) -> None:
+        """Make again the factorisation a :meth:`factor_record` describes, on
+        ``reference_space`` moved to its vertices (nothing when the record is empty): a
+        moved mesh's factorisation depends on where the mesh was when it was made."""
+        if record.get("factor_a0") is None:
+            return
+        self.move(reference_space.moved(record["factor_nodes"]), record["factor_centers"],
+                  record["factor_w"])
+        if record["factor_x"] is None:
+            self.factors.operator(record["factor_a0"])
+        else:
+            self.factorize_jacobian(record["factor_x"], record["factor_a0"])
+
     def residual(self, z, x_D, rhs_u, rigid_rhs, A_uu=None):
         """Coupled residual and the fluid residual behind it (``A_uu``: the velocity block
         to use, default the factorised one's; a moved mesh passes its own)."""
@@ -331,117 +344,104 @@ class MonolithicCoupling(RigidParticles):
             x0[self.space.nu:] = p
         return self.to_z(x0, xi)
 
-    def step(self, dt: float, dt_prev: float | None, u_n, u_prev, xi_n, xi_prev,
-             F_ext, T_ext, t_new: float, p_guess=None, u_guess=None, xi_guess=None,
-             geometry=None, xi_imposed=None):
-        """Solve one BDF2 (or backward-Euler when ``dt_prev`` is None) step.
+    def step(self, problem: StepProblem) -> StepSolution:
+        """Solve one BDF2 (or backward-Euler) step of fluid and rigid particles.
 
-        Parameters
-        ----------
-        u_n, u_prev : ndarray
-            Fluid velocity DOFs at ``t_n`` and ``t_{n-1}`` (``u_prev`` unused
-            for backward Euler).
-        xi_n, xi_prev : (3, K) ndarray
-            Rigid velocities at ``t_n`` and ``t_{n-1}``.
-        F_ext, T_ext : (2, K), (K,) ndarray
-            External forces and torques held over the step (buoyancy-reduced
-            gravity, contacts).
-        p_guess, u_guess, xi_guess
-            Initial guess (predictor) for Newton.
-        geometry : callable, optional
-            Moving mesh (ALE): ``geometry(xi) -> (space, centers, w_mesh)`` for the
-            mesh where the particles are at the end of the step with rigid velocities
-            ``xi`` ``(3, K)``, or ``None`` when the mesh in use is still that one. It is
-            asked before every residual evaluation, so the positions at the end of the
-            step are part of the iteration (the chord operator stays the factorised one).
-        xi_imposed : (3, K) ndarray, optional
-            The rigid velocities at ``t_new`` of the imposed particles (their columns;
-            the others are not read): Dirichlet data on their outlines.
-
-        Returns
-        -------
-        dict
-            ``x`` (full fluid vector), ``xi`` (3, K), ``force`` (2, K),
-            ``torque`` (K,), ``iterations``.
+        On a moving mesh (``problem.geometry``) the mesh is put where the iterate puts the
+        particles before every residual evaluation, so the positions at the end of the
+        step are part of the iteration (the chord operator stays the factorised one).
         """
-        xi_guess = self._impose(xi_imposed, xi_n, xi_guess)
-        a0, a1, a2 = ts.bdf2_coefficients(dt, dt_prev)
-        self.reference_op.time = self.op.time = t_new  # where user terms are assembled
-        rho = self.fluid.density
-        hist_u = a1 * u_n + (a2 * u_prev if dt_prev is not None else 0.0)
-        rhs_u = -rho * (self.space.M @ hist_u)
-        rigid_rhs = self._rigid_rhs(a1 * xi_n + (a2 * xi_prev if dt_prev is not None else 0.0),
-                                    F_ext, T_ext)
+        pr = problem
+        xi_guess = self._impose(pr.xi_imposed, pr.xi_n, pr.xi_guess)
+        a0 = pr.bdf2.a0
+        self.reference_op.time = self.op.time = pr.t_new  # where user terms are assembled
+        hist_u = pr.bdf2.history(pr.u_n, pr.u_prev)
+        rigid_rhs = self._rigid_rhs(pr.bdf2.history(pr.xi_n, pr.xi_prev), pr.F_ext, pr.T_ext)
         # a new factorisation: the Newton Jacobian at the first iterate if the last one was
         newton_first = (KEEP_NEWTON_OPERATOR and self.factors.a0 != a0
                         and self.factors.newton_operator and not self.op.linear)
         if not newton_first:
             self.factors.operator(a0)
-        current = {"A_uu": None, "rhs_u": rhs_u}
-
-        def refresh_with(g):
-            self.move(*g)
-            current["A_uu"] = self.op.velocity_block(a0)
-            current["rhs_u"] = -rho * (self.space.M @ hist_u)
-
-        def refresh(xi):
-            g = geometry(xi)
-            if g is not None:
-                refresh_with(g)
-
-        if geometry is not None:
-            refresh(xi_n if xi_guess is None else xi_guess)
-        x_D = self.imposed_values(self.x_dirichlet(t_new), self._xi_imposed)
-        z = self._first_iterate(u_n if u_guess is None else u_guess, p_guess,
-                                xi_n if xi_guess is None else xi_guess)
-        scale = max(float(np.abs(u_n).max()), float(np.abs(xi_n[:2]).max()), 1e-12)
+        mesh = _IterateMesh(self, pr.geometry, a0, hist_u)
+        mesh.follow(pr.xi_n if xi_guess is None else xi_guess)
+        x_D = self.imposed_values(self.x_dirichlet(pr.t_new), self._xi_imposed)
+        z = self._first_iterate(pr.u_n if pr.u_guess is None else pr.u_guess, pr.p_guess,
+                                pr.xi_n if xi_guess is None else xi_guess)
         if newton_first:
             self.factorize_jacobian(self.E @ z + x_D, a0)  # booked as assembly, factorisation
+        it = self._iterate(z, x_D, rigid_rhs, mesh, pr)
+        t0 = time.perf_counter()
+        mesh.follow(self.rigid(z))
+        G, Rf, x = self.residual(z, x_D, mesh.rhs_u, rigid_rhs, mesh.A_uu)
+        F, T = self.fluid_forces(Rf)
+        self.timings["forces"] += time.perf_counter() - t0
+        self._last = (mesh.rhs_u, x, mesh.A_uu)
+        return StepSolution(x=x, xi=self.rigid(z), force=F, torque=T, iterations=it)
+
+    def _iterate(self, z, x_D, rigid_rhs, mesh: _IterateMesh, pr: StepProblem) -> int:
+        """The chord iteration of one step from the first iterate ``z`` (updated in place);
+        returns the iterations. A stall refreshes the operator with the Newton Jacobian."""
+        a0 = pr.bdf2.a0
+        scale = pr.velocity_scale()
         t0 = time.perf_counter()
         # the chord loop corrects each linear solve's error itself (exact residuals), so
         # it skips iterative refinement; a linear (Stokes) step needs the refined solve
         solve = self.solver.solve_correction if not self.op.linear else self.solver.solve
         stall = ChordStall(self.max_iterations, self.factors)
-        refresh_time = [0.0]  # seconds of the refreshes (booked as assembly, factorisation)
+        refresh_time = 0.0  # seconds of the refreshes (booked as assembly, factorisation)
+        evaluations = 0
 
         def stop(it, dz, z):
-            if self.op.linear and geometry is None:
+            if self.op.linear and pr.geometry is None:
                 return True
             dn = float(np.abs(dz[: self.nu_z]).max())
             if not np.isfinite(dn):
-                raise ConvergenceError(f"coupled step dt={dt:.3e}: corrector produced NaN")
+                raise ConvergenceError(f"coupled step dt={pr.dt:.3e}: corrector produced NaN")
             tol = self.newton_tol * max(scale, float(np.abs(z[: self.nu_z]).max()))
             done = chord_converged(dn, 0.0 if stall.prev is None else stall.prev, it, tol)
             stall.observe(it, dn, done, tol)
             return done
 
         def correct(z, G, it):
+            nonlocal refresh_time
             if stall.refresh_due(it):
                 t_refresh = time.perf_counter()
                 self.factorize_jacobian(self.E @ z + x_D, a0)  # booked as assembly, factorisation
-                refresh_time[0] += time.perf_counter() - t_refresh
+                refresh_time += time.perf_counter() - t_refresh
             return -solve(G)
 
         def residual(z):
-            if geometry is not None and it_count["n"] > 0:
-                refresh(self.rigid(z))
-            it_count["n"] += 1
-            return self.residual(z, x_D, current["rhs_u"], rigid_rhs, current["A_uu"])[0]
+            nonlocal evaluations
+            if evaluations > 0:
+                mesh.follow(self.rigid(z))
+            evaluations += 1
+            return self.residual(z, x_D, mesh.rhs_u, rigid_rhs, mesh.A_uu)[0]
 
-        it_count = {"n": 0}
-        limit = self.max_iterations
-        it = newton_iterate(z, residual, correct, stop, max_iterations=limit)
+        it = newton_iterate(z, residual, correct, stop, max_iterations=self.max_iterations)
         if it is None:
-            raise ConvergenceError(f"coupled step at t={t_new:.6g} (dt={dt:.3e}): corrector did "
-                                   f"not converge in {limit} iterations")
-        self.timings["solve"] += time.perf_counter() - t0 - refresh_time[0]
-        t0 = time.perf_counter()
-        if geometry is not None:
-            refresh(self.rigid(z))
-        rhs_u, A_uu = current["rhs_u"], current["A_uu"]
-        G, Rf, x = self.residual(z, x_D, rhs_u, rigid_rhs, A_uu)
-        F, T = self.fluid_forces(Rf)
-        self.timings["forces"] += time.perf_counter() - t0
-        self._last = (rhs_u, x, A_uu)
-        return {"x": x, "xi": self.rigid(z), "force": F, "torque": T, "iterations": it}
+            raise ConvergenceError(f"coupled step at t={pr.t_new:.6g} (dt={pr.dt:.3e}): corrector "
+                                   f"did not converge in {self.max_iterations} iterations")
+        self.timings["solve"] += time.perf_counter() - t0 - refresh_time
+        return it
 
+
+class _IterateMesh:
+    """The mesh a corrector iterate is on (moving mesh: where the iterate puts the particles)
+    with the velocity block and the history's right-hand side there."""
+
+    def __init__(self, coupling: MonolithicCoupling, geometry, a0: float, hist_u):
+        self.coupling, self.geometry, self.a0, self.hist_u = coupling, geometry, a0, hist_u
+        self.A_uu = None  # None: the factorised operator's (the mesh has not moved)
+        self.rhs_u = -coupling.fluid.density * (coupling.space.M @ hist_u)
+
+    def follow(self, xi) -> None:
+        """Move the coupling's mesh to where rigid velocities ``xi`` put the particles."""
+        if self.geometry is None:
+            return
+        g = self.geometry(xi)
+        if g is None:
+            return
+        c = self.coupling
+        c.move(*g)
+        self.A_uu = c.op.velocity_block(self.a0)
+        self.rhs_u = -c.fluid.density * (c.space.M @ self.hist_u)

@@ -18,11 +18,11 @@ import time
 
 import numpy as np
 
-from .. import timestep as ts
 from ..fluid.errors import ConvergenceError
 from ..fluid.factor_cache import FactorCache
 from ..fluid.linsolve import make_solver
 from ..fluid.newton import newton_iterate
+from .problem import StepProblem, StepSolution
 from .rigid import RigidParticles
 
 
@@ -101,65 +101,59 @@ class PartitionedCoupling(RigidParticles):
             raise ConvergenceError("partitioned coupling: fluid corrector did not converge")
         return it
 
-    def step(
-        self,
-        dt,
-        dt_prev,
-        u_n,
-        u_prev,
-        xi_n,
-        xi_prev,
-        F_ext,
-        T_ext,
-        t_new,
-        p_guess=None,
-        u_guess=None,
-        xi_guess=None,
-        xi_imposed=None,
-    ):
-        """One staggered step; returns the same dictionary as the monolithic coupling
-        (``xi_imposed`` as there: the imposed particles' velocities at ``t_new``)."""
+    def step(self, problem: StepProblem) -> StepSolution:
+        """One staggered step (``problem.xi_imposed`` as for the monolithic coupling: the
+        imposed particles' velocities at ``t_new``); a moving mesh is not supported."""
+        pr = problem
         imposed = self.imposed if self.imposed.any() else None
-        if imposed is not None and xi_imposed is None:
+        if imposed is not None and pr.xi_imposed is None:
             raise ValueError("PartitionedCoupling.step: xi_imposed (3, K) is required: the "
                              "coupling has particles with a prescribed motion")
         sp_, op = self.space, self.op
-        op.time = t_new  # where the user terms are assembled
-        a0, a1, a2 = ts.bdf2_coefficients(dt, dt_prev)
-        self.factors.operator(a0)
-        hist_u = a1 * u_n + (a2 * u_prev if dt_prev is not None else 0.0)
-        rhs_u = -self.fluid.density * (sp_.M @ hist_u)
-        hist_xi = a1 * xi_n + (a2 * xi_prev if dt_prev is not None else 0.0)
-        m3 = np.stack([self.mass, self.mass, self.inertia])
-        ext = np.vstack([F_ext, T_ext[None, :]])
+        op.time = pr.t_new  # where the user terms are assembled
+        self.factors.operator(pr.bdf2.a0)
+        rhs_u = -self.fluid.density * (sp_.M @ pr.bdf2.history(pr.u_n, pr.u_prev))
         # predictor: velocities extrapolated with pressures and forces held
-        xi = xi_n if xi_prev is None else xi_n + (dt / dt_prev) * (xi_n - xi_prev)
+        f = pr.bdf2
+        xi = (pr.xi_n if pr.xi_prev is None or f.dt_prev is None
+              else pr.xi_n + (pr.dt / f.dt_prev) * (pr.xi_n - pr.xi_prev))
         if not self.rotation:
             xi = xi.copy()
             xi[2] = 0.0
         if imposed is not None:
             xi = xi.copy()
-            xi[:, imposed] = np.asarray(xi_imposed, dtype=float)[:, imposed]
+            xi[:, imposed] = np.asarray(pr.xi_imposed, dtype=float)[:, imposed]
         x = np.zeros(sp_.N)
-        x[: sp_.nu] = u_n
-        if p_guess is not None:
-            x[sp_.nu :] = p_guess
-        scale = max(float(np.abs(u_n).max()), float(np.abs(xi_n[:2]).max()), 1e-12)
-        its = 0
+        x[: sp_.nu] = pr.u_n
+        if pr.p_guess is not None:
+            x[sp_.nu :] = pr.p_guess
         t0 = time.perf_counter()
-        changes = []
+        xi_new, F, T, its = self._subiterate(x, xi, rhs_u, pr)
+        self.timings["solve"] += time.perf_counter() - t0
+        self._last = (rhs_u, x, None)
+        return StepSolution(x=x, xi=xi_new, force=F, torque=T, iterations=its)
+
+    def _subiterate(self, x, xi, rhs_u, pr: StepProblem):
+        """Fluid solves with the particle velocities ``xi`` as boundary data, the particle
+        corrector driven by their force, relaxed until the velocities agree; ``x`` is
+        updated in place. Returns ``(xi, F, T, fluid iterations)``."""
+        op, imposed = self.op, (self.imposed if self.imposed.any() else None)
+        hist_xi = pr.bdf2.history(pr.xi_n, pr.xi_prev)
+        m3 = np.stack([self.mass, self.mass, self.inertia])
+        ext = np.vstack([pr.F_ext, pr.T_ext[None, :]])
+        scale = pr.velocity_scale()
+        its = 0
+        changes: list[float] = []
         omega = 0.5 if self.relaxation == "aitken" else float(self.relaxation)
         r_old = None
-        converged = False
         for sub in range(max(1, self.subiterations)):
-            self._boundary_values(x, xi, t_new)
+            self._boundary_values(x, xi, pr.t_new)
             try:
                 its += self._fluid_solve(x, rhs_u, scale)
             except ConvergenceError:
-                self._diverged(t_new, xi)
-            Rf = op.residual(x, rhs_u=rhs_u, A_uu=self.factors.A_uu)
-            F, T = self.fluid_forces(Rf)
-            xi_new = ((ext + np.vstack([F, T[None, :]])) / m3 - hist_xi) / a0
+                self._diverged(pr.t_new, xi)
+            F, T = self.fluid_forces(op.residual(x, rhs_u=rhs_u, A_uu=self.factors.A_uu))
+            xi_new = ((ext + np.vstack([F, T[None, :]])) / m3 - hist_xi) / pr.bdf2.a0
             if not self.rotation:
                 xi_new[2] = 0.0
             if imposed is not None:
@@ -170,10 +164,9 @@ class PartitionedCoupling(RigidParticles):
             if not np.all(np.isfinite(xi_new)) or (
                 len(changes) >= 4 and changes[-1] > changes[-2] > changes[-3] > changes[-4]
             ):
-                self._diverged(t_new, xi_new)
+                self._diverged(pr.t_new, xi_new)
             if changes[-1] <= self.coupling_tol * max(scale, float(np.abs(xi_new).max())):
-                converged = True
-                break
+                return xi_new, F, T, its
             if sub == 0 and self.relaxation != "aitken":
                 xi = xi_new
                 continue
@@ -182,14 +175,12 @@ class PartitionedCoupling(RigidParticles):
                 omega = -omega * float(r_old @ dr) / max(float(dr @ dr), 1e-300)
             r_old = r
             xi = xi + omega * r.reshape(xi.shape)
-        if self.subiterations > 1 and not converged:
+        if self.subiterations > 1:
             raise ConvergenceError(
-                f"partitioned coupling at t={t_new:.6g}: not converged in {self.subiterations} "
-                f"sub-iterations (last change {changes[-1]:.2e}); the added-mass effect of light "
-                "particles: use the monolithic coupling")
-        self.timings["solve"] += time.perf_counter() - t0
-        self._last = (rhs_u, x, None)
-        return {"x": x, "xi": xi_new, "force": F, "torque": T, "iterations": its}
+                f"partitioned coupling at t={pr.t_new:.6g}: not converged in "
+                f"{self.subiterations} sub-iterations (last change {changes[-1]:.2e}); the "
+                "added-mass effect of light particles: use the monolithic coupling")
+        return xi_new, F, T, its
 
     @staticmethod
     def _diverged(t, xi):

@@ -104,6 +104,36 @@ class RigidParticles:
         """Factorise anew on the next step (as a coupling rebuilt from a checkpoint does)."""
         self.factors.clear()
 
+    # ------------------------------------------------------------------ factorisations
+    def factor_counts(self) -> dict:
+        """Factorisations on this mesh: ``factorizations`` of the BDF2-Stokes operator and
+        ``jacobian_refreshes`` (Newton Jacobians where the chord iteration stalled)."""
+        return {"factorizations": self.factors.factorizations,
+                "jacobian_refreshes": self.factors.refreshes}
+
+    def inherit_factor_kind(self, old: RigidParticles) -> None:
+        """Start with the kind of factorisation ``old`` (the coupling on the mesh this one
+        replaces) held: a Newton Jacobian's if it held one."""
+        self.factors.newton_operator = old.factors.newton_operator
+
+    def factor_record(self) -> dict:
+        """Where the factorisation held was made, for a checkpoint (``factor_a0`` None: no
+        record): ``factor_a0``, the vertices ``factor_nodes`` and centres
+        ``factor_centers`` of the mesh then, and for a Newton Jacobian its fluid state
+        ``factor_x`` and mesh velocity ``factor_w``."""
+        on = getattr(self, "factorized_on", None)
+        a0 = self.factors.a0
+        if a0 is None or on is None:
+            a0, on = None, (None, None, None, None)
+        return {"factor_a0": a0, "factor_nodes": on[0], "factor_centers": on[1],
+                "factor_x": on[2], "factor_w": on[3]}
+
+    def refactor(self, record: dict, reference_space) -> None:
+        """Make again the factorisation a :meth:`factor_record` describes (a coupling on a
+        moving mesh; nothing when the record is empty)."""
+        if record.get("factor_a0") is not None:
+            raise NotImplementedError(f"{type(self).__name__}: no factorisation on a moved mesh")
+
     def fluid_forces(self, Rf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Consistent force ``(2, K)`` and torque ``(K,)`` of the fluid on each particle."""
         r = Rf[self._all_dofs]

@@ -7,12 +7,13 @@ from dataclasses import dataclass
 import numpy as np
 
 
-@dataclass
+@dataclass(frozen=True)
 class CoupledState:
     """The histories the next coupled BDF2 step needs, besides the particles' current state.
 
     The particles' poses and velocities at ``t`` live in the DEM system (their one
     owner); this holds the fluid state at ``t`` and everything from earlier steps.
+    A value: a step or a remesh makes a new one (``dataclasses.replace``).
 
     Attributes
     ----------

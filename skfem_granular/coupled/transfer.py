@@ -69,16 +69,17 @@ class FieldTransfer:
         return self._Ep @ p
 
 
-def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project=None) -> None:
-    """Move the fluid histories of a :class:`~skfem_granular.coupled.state.CoupledState`
-    from ``old`` onto ``new`` (in place): ``u_n``, ``du_n``, ``p_n`` and ``x`` at ``t_n``,
-    ``u_{n-1}`` and ``du_{n-1}`` at ``t_{n-1}``. Before the first step (``p_n`` None, a
-    first mesh rebuilt at once) the pressure stays None and ``x`` holds zero pressures.
+def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project=None) -> dict:
+    """The fluid histories of a :class:`~skfem_granular.coupled.state.CoupledState` moved
+    from ``old`` onto ``new``: ``u_n``, ``du_n``, ``p_n`` and ``x`` at ``t_n``, ``u_prev``
+    and ``du_prev`` at ``t_{n-1}``, as a dict of those fields (for
+    ``dataclasses.replace``). Before the first step (``p_n`` None, a first mesh rebuilt
+    at once) the pressure stays None and ``x`` holds zero pressures.
 
     Parameters
     ----------
     state : CoupledState
-        The state to update.
+        The state on ``old`` (not changed).
     old, new : TaylorHood
         The discretisations at ``t_n``.
     old_prev, new_prev : TaylorHood, optional
@@ -92,15 +93,17 @@ def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project
     """
     s = state
     tr = FieldTransfer(old, new)
-    s.u_n = tr.velocity(s.u_n)
-    s.du_n = None if s.du_n is None else tr.velocity(s.du_n)
-    s.p_n = None if s.p_n is None else tr.pressure(s.p_n)  # None: no step taken yet
+    u_n = tr.velocity(s.u_n)
+    du_n = None if s.du_n is None else tr.velocity(s.du_n)
+    p_n = None if s.p_n is None else tr.pressure(s.p_n)  # None: no step taken yet
     tr_prev = tr if old_prev is None else FieldTransfer(old_prev, new_prev)
-    s.u_prev = None if s.u_prev is None else tr_prev.velocity(s.u_prev)
-    s.du_prev = None if s.du_prev is None else tr_prev.velocity(s.du_prev)
+    u_prev = None if s.u_prev is None else tr_prev.velocity(s.u_prev)
+    du_prev = None if s.du_prev is None else tr_prev.velocity(s.du_prev)
     if project is not None:
-        s.u_n = divergence_free_projection(project, s.u_n)
-        if s.u_prev is not None:  # on the t_{n-1} configuration: its M and B only
-            s.u_prev = divergence_free_projection(project, s.u_prev,
-                                                  space=None if old_prev is None else new_prev)
-    s.x = np.concatenate([s.u_n, np.zeros(new.N - new.nu) if s.p_n is None else s.p_n])
+        u_n = divergence_free_projection(project, u_n)
+        if u_prev is not None:  # on the t_{n-1} configuration: its M and B only
+            u_prev = divergence_free_projection(project, u_prev,
+                                                space=None if old_prev is None else new_prev)
+    x = np.concatenate([u_n, np.zeros(new.N - new.nu) if p_n is None else p_n])
+    return {"u_n": u_n, "du_n": du_n, "p_n": p_n, "u_prev": u_prev, "du_prev": du_prev,
+            "x": x}

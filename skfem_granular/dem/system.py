@@ -8,12 +8,13 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import overlap_numba, pipeline, substeps_numba
+from . import overlap_numba, pipeline, snapshot, substeps_numba
 from .broadphase import NeighbourList, circle_pairs, wall_pairs
 from .contact_law import ContactForces, ContactHistory, ContactLaw
 from .integrator import BDF2History, correct, predict, stable_time_step
 from .motion import pose_derivative
 from .particles import Body, ParticleArrays, rotate_outlines
+from .snapshot import DEMSnapshot
 from .walls import WallArrays, box_walls
 
 __all__ = ["MAX_STEP_RATIO", "DEMSystem"]
@@ -442,6 +443,16 @@ class DEMSystem:
         return P, Lz
 
     # ------------------------------------------------------------ checkpoints
+    def snapshot(self) -> DEMSnapshot:
+        """An in-memory copy of the dynamic state, neighbour list and last contacts
+        included (:func:`~skfem_granular.dem.snapshot.take`): :meth:`restore_snapshot`
+        makes the system go on exactly as from the moment it was taken."""
+        return snapshot.take(self)
+
+    def restore_snapshot(self, snap: DEMSnapshot) -> None:
+        """Return to the state of a :meth:`snapshot`."""
+        snapshot.restore(self, snap)
+
     def save_state(self) -> dict:
         """Copy of the full dynamic state (positions, velocities, BDF2 and contact history)."""
         return {

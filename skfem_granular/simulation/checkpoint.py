@@ -204,6 +204,8 @@ def save(sim, k: int, series) -> Path:
         "frames": {name: [(float(t), str(f)) for t, f in s.frames]
                    for name, s in (series or {}).items() if s is not None},
     }
+    # the run that writes a checkpoint goes on as a run resumed from it would (bit for bit)
+    sim.stepper.forget_caches()
     from .. import __version__
 
     node, arrays = plain.encode(content, REGISTRY)

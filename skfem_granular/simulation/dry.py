@@ -47,9 +47,12 @@ class DryStepper:
                                     torque=zeros, acceleration=(dem.particles.v - v_old) / dt)
 
     def checkpoint_state(self) -> dict:
-        """The step count; the DEM forgets its neighbour list, as a resumed run's does."""
-        self.dem.neighbours.invalidate()
+        """The step count."""
         return {"steps_taken": self.steps_taken}
+
+    def forget_caches(self) -> None:
+        """The DEM forgets its neighbour list, as a resumed run's does."""
+        self.dem.neighbours.invalidate()
 
     def collect_timings(self) -> dict:
         return self.timings
