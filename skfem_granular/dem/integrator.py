@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..timestep import bdf2_coefficients
+from ..timestep import BDF2, bdf2_coefficients
 
 __all__ = ["BDF2History", "bdf2_coefficients", "correct", "predict", "stable_time_step"]
 
@@ -109,9 +109,9 @@ def correct(q, v, hist: BDF2History, a_star, dt: float):
         v_new = v + dt * a_star
         q_new = q + 0.5 * dt * (v + v_new)
     else:
-        a0, a1, a2 = bdf2_coefficients(dt, hist.dt_prev)
-        v_new = (a_star - a1 * v - a2 * hist.v_prev) / a0
-        q_new = (v_new - a1 * q - a2 * hist.q_prev) / a0
+        f = BDF2(dt, hist.dt_prev)
+        v_new = f.solve(a_star, v, hist.v_prev)
+        q_new = f.solve(v_new, q, hist.q_prev)
     hist.q_prev = q.copy()
     hist.v_prev = v.copy()
     hist.a_prev = hist.a

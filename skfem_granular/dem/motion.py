@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..timestep import bdf2_coefficients
+from ..timestep import BDF2
 
 __all__ = ["PrescribedMotion", "pose_derivative"]
 
@@ -56,11 +56,7 @@ def pose_derivative(q_new: np.ndarray, q_n: np.ndarray, q_prev, dt: float,
     dt, dt_prev : float
         The step and the one before it (None: backward Euler).
     """
-    a0, a1, a2 = bdf2_coefficients(dt, dt_prev)
-    v = a0 * q_new + a1 * q_n
-    if dt_prev is not None:
-        v = v + a2 * q_prev
-    return v
+    return BDF2(dt, dt_prev).derivative(q_new, q_n, q_prev)
 
 
 def _finite(where: str, value, n: int) -> tuple:

@@ -160,7 +160,7 @@ class BDF2Integrator:
                              f"shape {shape}, got {p.shape}")
         return p
 
-    def _moved_operator(self, dt: float, a0: float, a1: float, a2: float):
+    def _moved_operator(self, bdf2: ts.BDF2):
         """Operator on the mesh at ``t + dt`` and the mesh velocity there (ALE), or the
         fixed mesh's operator and ``None``.
 
@@ -169,14 +169,12 @@ class BDF2Integrator:
         """
         if self.mesh_motion is None:
             return self.op, None
-        p_new = self._positions(self.t + dt)
+        p_new = self._positions(self.t + bdf2.dt)
         op = self.op.moved(self.space.reference.moved(p_new))
         assert self.p_n is not None  # set from the start on a moving mesh
-        wv = a0 * p_new + a1 * self.p_n
-        if a2 != 0.0:  # a second step on: t_{n-1} was committed
-            assert self.p_prev is not None
-            wv = wv + a2 * self.p_prev
-        return op, op.space.vertex_field(wv)
+        # a second step on: t_{n-1} was committed
+        assert bdf2.euler or self.p_prev is not None
+        return op, op.space.vertex_field(bdf2.derivative(p_new, self.p_n, self.p_prev))
 
     # linear algebra ---------------------------------------------------------------
     def _refresh(self, x: np.ndarray, a0: float, op, w_mesh) -> None:
@@ -192,8 +190,8 @@ class BDF2Integrator:
         self.timings["assembly"] += time.perf_counter() - t0
         self.factors.factorize_system(a0, system)
 
-    def _coefficients(self, dt):
-        return ts.bdf2_coefficients(dt, None if self.scheme == "euler" else self.dt_prev)
+    def _bdf2(self, dt) -> ts.BDF2:
+        return ts.BDF2(dt, None if self.scheme == "euler" else self.dt_prev)
 
     # one step -----------------------------------------------------------------------
     def try_step(self, dt: float):
@@ -216,11 +214,12 @@ class BDF2Integrator:
         """
         nu = self.space.nu
         rho = self.fluid.density
-        a0, a1, a2 = self._coefficients(dt)
+        bdf2 = self._bdf2(dt)
+        a0 = bdf2.a0
         u_n = self.x[:nu]
-        hist = a1 * u_n if self.u_prev is None else a1 * u_n + a2 * self.u_prev
+        hist = bdf2.history(u_n, self.u_prev)
         t0 = time.perf_counter()
-        op, w_mesh = self._moved_operator(dt, a0, a1, a2)
+        op, w_mesh = self._moved_operator(bdf2)
         op.time = self.t + dt  # where the user terms are assembled
         sp_ = op.space
         rhs_u = -rho * (sp_.M @ hist)
@@ -288,9 +287,8 @@ class BDF2Integrator:
     def commit(self, x_new: np.ndarray, dt: float) -> None:
         """Make ``x_new`` the state at ``t + dt`` and shift the histories."""
         nu = self.space.nu
-        a0, a1, a2 = self._coefficients(dt)
         u_n = self.x[:nu]
-        du_new = a0 * x_new[:nu] + a1 * u_n + (a2 * self.u_prev if self.u_prev is not None else 0.0)
+        du_new = self._bdf2(dt).derivative(x_new[:nu], u_n, self.u_prev)
         self.u_prev = u_n.copy()
         self.du_prev, self.du = self.du, du_new
         self.dt_prev = dt
