@@ -8,8 +8,8 @@ import numpy as np
 from helpers import box, regular_polygon
 
 import skfem_granular as sg
+import skfem_granular.coupled.mesh_keeper as mesh_keeper
 import skfem_granular.coupled.monolithic as monolithic
-import skfem_granular.coupled.stepper as stepper
 import skfem_granular.fluid.newton as newton
 from skfem_granular.scene import Scene
 from skfem_granular.simulation import Simulation
@@ -166,7 +166,7 @@ def test_chord_stall_names_the_rule_that_asks_for_a_refresh(monkeypatch):
 
 
 #: The library's bound (the tests below change it and set it back).
-CARRY_STEPS = stepper.NEWTON_CARRY_STEPS
+CARRY_STEPS = mesh_keeper.NEWTON_CARRY_STEPS
 
 
 def _collapse_remeshes(monkeypatch, keep: bool = True, carry_steps: int | None = None):
@@ -174,7 +174,7 @@ def _collapse_remeshes(monkeypatch, keep: bool = True, carry_steps: int | None =
     Jacobian, ``(steps the mesh lived, linear factorisations, Jacobian factorisations)`` of
     that step."""
     monkeypatch.setattr(monolithic, "KEEP_NEWTON_OPERATOR", keep)
-    monkeypatch.setattr(stepper, "NEWTON_CARRY_STEPS",
+    monkeypatch.setattr(mesh_keeper, "NEWTON_CARRY_STEPS",
                         CARRY_STEPS if carry_steps is None else carry_steps)
     sc = Scene.bundled("collapse")
     sim = Simulation(replace(sc, output_dir=None, time=replace(sc.time, t_end=0.04)))
@@ -196,7 +196,7 @@ def _collapse_remeshes(monkeypatch, keep: bool = True, carry_steps: int | None =
 
 def test_short_lived_mesh_hands_its_newton_jacobian_on(monkeypatch):
     """Once the collapse's corrector needed a Newton Jacobian, a remesh of a mesh that lived
-    at most :data:`~skfem_granular.coupled.stepper.NEWTON_CARRY_STEPS` steps factorises the
+    at most :data:`~skfem_granular.coupled.mesh_keeper.NEWTON_CARRY_STEPS` steps factorises the
     new mesh's Jacobian at the step's first iterate, not the BDF2-Stokes operator; a
     longer-lived mesh's successor, or any with
     :data:`~skfem_granular.coupled.monolithic.KEEP_NEWTON_OPERATOR` off, starts on the linear

@@ -15,7 +15,7 @@ neighbours' mean.
 
 :func:`mesh_quality` measures what a motion did to the triangles (smallest
 angle, smallest signed-area ratio to the built mesh), for the remeshing rule of
-:class:`~skfem_granular.coupled.stepper.CoupledStepper`.
+:class:`~skfem_granular.coupled.mesh_keeper.MeshKeeper`.
 """
 
 from __future__ import annotations

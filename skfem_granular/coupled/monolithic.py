@@ -36,7 +36,7 @@ iteration continues on it (later steps with the same ``a0`` reuse it). A
 factorisation made anew for a new ``a0`` is of the Newton Jacobian at the step's
 first iterate when the one it replaces was one (:data:`KEEP_NEWTON_OPERATOR`), and so
 is a new mesh's when the stepper carries the kind over (a mesh replaced within a few
-steps: :data:`~skfem_granular.coupled.stepper.NEWTON_CARRY_STEPS`). GMRES
+steps: :data:`~skfem_granular.coupled.mesh_keeper.NEWTON_CARRY_STEPS`). GMRES
 preconditioned by the held factorisation instead was measured on the collapse's
 contact phase: 12-25 iterations per correction, as costly as a new SuperLU
 factorisation at 20k unknowns.

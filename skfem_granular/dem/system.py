@@ -8,7 +8,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import overlap_numba, pipeline, snapshot, substeps_numba
+from . import overlap_numba, pipeline, snapshot, start_checks, substeps_numba
 from .broadphase import NeighbourList, circle_pairs, wall_pairs
 from .contact_law import ContactForces, ContactHistory, ContactLaw
 from .integrator import BDF2History, correct, predict, stable_time_step
@@ -157,8 +157,8 @@ class DEMSystem:
         self.dt_stable = stable_time_step(self.mass, self.law.E, self.law.gamma)
         self.dt = self._check_dt(self.dt_stable if dt is None else dt, "dt")
         self.domain = None if domain is None else tuple(float(x) for x in domain)
-        self._validate_domain()
-        self._validate_overlaps(overlap_tolerance)
+        start_checks.check_domain(self)
+        start_checks.check_overlaps(self, overlap_tolerance)
 
     # ------------------------------------------------------------------ setup
     @classmethod
@@ -198,41 +198,6 @@ class DEMSystem:
                 f"0.1*pi*sqrt(min m / E) / max(1, 2 gamma) (min m = {self.mass[k]:.6g} of "
                 f"particles[{k}], E = {self.law.E:.6g}, gamma = {self.law.gamma:g})")
         return dt
-
-    def _validate_domain(self):
-        if self.domain is None or self.n == 0:
-            return
-        x0, y0, x1, y1 = self.domain
-        tol = 1e-9 * max(x1 - x0, y1 - y0)
-        V = rotate_outlines(self.particles.shadow_local, self.particles.q)
-        lo, hi = V.min(axis=1), V.max(axis=1)
-        bad = (lo[:, 0] < x0 - tol) | (lo[:, 1] < y0 - tol) | (hi[:, 0] > x1 + tol) | (
-            hi[:, 1] > y1 + tol)
-        if np.any(bad):
-            k = int(np.nonzero(bad)[0][0])
-            raise ValueError(
-                f"particles[{k}].shape spans x in [{lo[k, 0]:.6g}, {hi[k, 0]:.6g}], "
-                f"y in [{lo[k, 1]:.6g}, {hi[k, 1]:.6g}]: must lie inside the box "
-                f"domain = {self.domain}")
-
-    def _validate_overlaps(self, tol: float):
-        if self.n == 0:
-            return
-        q = self.particles.q
-        I, J = NeighbourList(0.0).update(q[:2], self.particles.radius, self.walls.vertices)
-        V = pipeline.body_vertices(self, q)
-        I, J, area, *_ = pipeline.contact_geometry(self, V, q, I, J)
-        ref = np.where(J < self.n, np.minimum(self.particles.area[I],
-                                              self.particles.area[np.minimum(J, self.n - 1)]),
-                       self.particles.area[I])
-        rel = area / ref
-        if np.any(rel > tol):
-            k = int(np.argmax(rel))
-            other = (f"particles[{J[k]}]" if J[k] < self.n
-                     else f"walls[{J[k] - self.n}]")
-            raise ValueError(
-                f"particles[{I[k]}] and {other} overlap at start by {rel[k]:.3g} of the "
-                f"smaller area: must be <= overlap_tolerance = {tol:g}")
 
     # ------------------------------------------------------------ geometry
     def body_centroids(self, q=None) -> np.ndarray:
