@@ -1,4 +1,4 @@
-"""Hard cases stay stable (issue: hard cases): large steps, remeshing energy, light particles."""
+"""Hard cases stay stable: large steps, remeshing energy, light particles."""
 
 from dataclasses import replace
 

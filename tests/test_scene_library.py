@@ -11,7 +11,7 @@ from skfem_granular.cli import main
 from skfem_granular.scene import Scene, bundled, bundled_scenes
 
 PAPER = ("collapse", "collapse_group", "single_particle", "single_particle_fine")
-#: issue 14's sedimentation and repose checks
+#: the sedimentation and repose checks (docs/sedimentation.md)
 SEDIMENTATION = ("dkt_two_disks", "dkt_uhlmann", "migration_off_centre", "repose_hexagons",
                  "settling_disk_channel", "settling_disk_k3", "settling_disk_k8_tall",
                  "settling_hexagon", "settling_rectangle")
@@ -112,7 +112,7 @@ def test_cli_unknown_scene_is_a_missing_file(tmp_path, monkeypatch, capsys):
 
 
 def test_sedimentation_scenes_keep_the_published_set_ups():
-    """cgs set-ups of issue 14 converted to SI (docs/sedimentation.md)."""
+    """cgs set-ups of the sedimentation checks converted to SI (docs/sedimentation.md)."""
     sc = {n: Scene.bundled(n) for n in SEDIMENTATION}
     g = sc["settling_disk_channel"]
     assert g.domain == (0.0, 0.0, 0.02, 0.06) and g.fluid.viscosity == 0.01

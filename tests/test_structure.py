@@ -212,13 +212,16 @@ def test_function_length_leaves_out_the_docstring(tmp_path):
 
 
 def test_docs_and_code_speak_of_the_library_not_its_issues():
-    """No issue numbers in page titles, prose, docstrings or benchmark scripts."""
+    """No issue numbers in page titles, prose, docstrings, benchmark scripts, the bundled
+    scenes' comments (``skfem-granular scenes`` prints their first lines) or the package's
+    data files."""
     import re
 
     pattern = re.compile(r"\b[Ii]ssue\s+#?\d+|\(issue\b|\b(the|this|that) issue\b", re.I)
     paths = ([p for pkg in ("skfem_granular", "meshing", "benchmarks") for p in
               sorted((ROOT / pkg).rglob("*.py"))] + sorted((ROOT / "docs").glob("*.md"))
-             + [ROOT / "README.md"])
+             + [ROOT / "README.md"]
+             + [p for ext in ("*.toml", "*.json") for p in sorted(PKG.rglob(ext))])
     found = [f"{p.relative_to(ROOT)}:{k + 1}" for p in paths
              for k, line in enumerate(p.read_text().splitlines()) if pattern.search(line)]
     assert found == []
