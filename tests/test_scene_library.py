@@ -55,6 +55,27 @@ def test_bundled_scenes_keep_the_paper_numbers():
         np.testing.assert_array_equal(a.polygon.vertices, b.polygon.vertices)
 
 
+@pytest.mark.parametrize("name", ["collapse", "collapse_group"])
+def test_collapse_steps_coarse_at_contacts_on_purpose_without_a_warning(name):
+    """The collapse's 0.2 ms steps are ~50 DEM stable steps: the scene says so
+    (time.contact_warning = false) and is not warned about; the same scene without
+    that line is."""
+    from dataclasses import replace
+
+    from skfem_granular.dem import DEMSystem
+    from skfem_granular.simulation.effects import scene_warnings
+
+    sc = Scene.bundled(name)
+    assert sc.effects.contacts is True and not sc.time.adaptive and not sc.time.contact_warning
+    dem = DEMSystem.in_box([p.to_dem() for p in sc.particles], sc.domain, sc.wall_thickness,
+                           law=sc.contact_law)
+    assert sc.time.dt > 40 * dem.dt_stable
+    assert scene_warnings(sc, dem, True) == []
+    user = replace(sc, time=replace(sc.time, contact_warning=True))
+    (w,) = scene_warnings(user, dem, True)
+    assert w.startswith("time.dt = 0.0002 s does not resolve a contact")
+
+
 @pytest.mark.parametrize("spelling", ["single-particle", "single_particle", "single_particle.toml",
                                       "single-particle.toml"])
 def test_bundled_names_hyphens_underscores_suffix(spelling):
