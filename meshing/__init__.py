@@ -24,9 +24,10 @@ from .graded import graded_mesh, ring_radii
 from .group import group_mesh
 from .plot import plot_mesh
 from .quality import MeshStats, mesh_stats, remesh_needed
+from .registry import build
 from .remesh import move_particles, remesh
 from .uniform import uniform_mesh
-from .value import BodyFittedMesh, Recipe, build
+from .value import BodyFittedMesh, Recipe
 
 __all__ = ["BodyFittedMesh", "MeshStats", "Recipe", "build", "field_mesh", "graded_mesh",
            "group_mesh",

@@ -40,7 +40,7 @@ class Sizing:
     linear in the radius. With Eq. 4's default ``sigma = 1 + dl / r0`` this
     is ``h = dl r / r0``, the ring spacing ``r_{i+1} - r_i = dl r_i / r0``.
     ``h_max`` caps the growth (a fraction of a narrow domain's width, see
-    :func:`meshing.graded.size_cap`; infinite by default).
+    :func:`meshing.inputs.size_cap`; infinite by default).
     """
 
     def __init__(self, centers: NDArray[np.float64], dl: NDArray[np.float64],

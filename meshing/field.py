@@ -46,10 +46,11 @@ from numpy.typing import NDArray
 from .cleanup import merge_degenerate
 from .gaps import GAP_SPACING, split_gap_edges
 from .geometry import centroids
-from .graded import check_rounds, check_sigma, prepare
+from .inputs import check_rounds, check_sigma, prepare
 from .layer import GAP_FRACTION, WALL_FRACTION, layer_nodes
 from .pslg import Layout, Triangulation, fixed_point, triangulate
 from .quality import angles_and_aspect, signed_areas
+from .registry import builds
 from .relax import relax
 from .repair import REPAIR_ROUNDS, SAFE_MAX_ASPECT, SAFE_MIN_ANGLE, circumcenters, repair_nodes
 from .size_field import SizeField
@@ -329,6 +330,7 @@ def check_gap_spacing(gap_spacing: object) -> float:
     return float(gap_spacing)
 
 
+@builds("field")
 def build_field(domain: object, particles: object, *, sigma: float | None = None,
                 delta_l: float | None = None, max_elements: int = MAX_FIELD_ELEMENTS,
                 relax_rounds: int = 0, size: object = None,

@@ -19,38 +19,16 @@ import skfem
 from numpy.typing import NDArray
 
 from .cleanup import Sizing, truncate, wall_nodes
-from .geometry import (
-    MAX_ELEMENTS,
-    as_domain,
-    as_particles,
-    centroid,
-    check_layout,
-    outline_lengths,
-    positive,
-    subdivide,
-    width,
-)
+from .geometry import MAX_ELEMENTS, centroid, outline_lengths
+from .inputs import check_rounds, check_sigma, prepare, size_cap
 from .pslg import Layout
+from .registry import builds
 from .repair import build
 from .skfem_mesh import to_body_fitted
 from .value import BodyFittedMesh, Recipe
 
-SIGMA_MAX = 1.6
-"""Largest accepted growth factor given by the user (element size doubling
-within two circles; beyond, the node count per circle drops too abruptly for
-the quality bounds). A 10-gon's default from Eq. 4 may reach 1.618."""
-
 DL_MAX_RATIO = 2.0 * float(np.sin(np.pi / 10.0))
 """Largest outline edge length over circumradius for graded circles (a 10-gon)."""
-
-WIDTH_FRACTION = 0.5
-"""Largest element size over the domain's smallest width (:func:`size_cap`). Without a
-cap the circles of a particle in a long narrow channel grow past the channel's width:
-a 1 mm disk near the top of a 4 mm x 120 mm channel left the 100 mm below it to a
-handful of triangles spanning the channel (smallest angle 2.05 deg). With it the circles
-stop growing at half the width (edges there 1.1 times that on average, about two
-elements across; 531 vertices, 25.9 deg). Domains where the growth ends below the cap
-(the paper's box: 1.49 mm against 1.5 mm) get the same mesh as without it."""
 
 
 @dataclass(frozen=True)
@@ -75,11 +53,6 @@ class Rings:
 def default_sigma(dl: float, r0: float) -> float:
     """Growth factor of Eq. 4: ``sigma = 1 + Delta_l / r0``."""
     return 1.0 + dl / r0
-
-
-def size_cap(D: NDArray[np.float64]) -> float:
-    """Largest element size in domain ``D``: :data:`WIDTH_FRACTION` of its smallest width."""
-    return WIDTH_FRACTION * width(D)
 
 
 def ring_radii(r0: float, sigma: float, r_max: float, dl: float | None = None,
@@ -173,40 +146,6 @@ def check_ring_nodes(all_rings: Sequence[Rings], sigma, delta_l) -> None:
                          "delta_l or sigma")
 
 
-def check_rounds(relax_rounds: object) -> None:
-    """Raise ValueError unless ``relax_rounds`` is an integer in ``[0, 20]``."""
-    if not isinstance(relax_rounds, int | np.integer) or not 0 <= relax_rounds <= 20:
-        raise ValueError(f"relax_rounds: must be an integer in [0, 20], got {relax_rounds!r}")
-
-
-def check_sigma(sigma: float | None) -> float | None:
-    if sigma is None:
-        return None
-    try:
-        s = float(sigma)
-    except (TypeError, ValueError):
-        raise ValueError(f"sigma: expected a number, got {sigma!r}") from None
-    if not (np.isfinite(s) and 1.0 < s <= SIGMA_MAX):
-        raise ValueError(f"sigma: growth factor must be in (1, {SIGMA_MAX:g}], got {s!r}")
-    return s
-
-
-def prepare(domain: object, particles: object, delta_l: float | None
-            ) -> tuple[NDArray, tuple[str, ...], list[NDArray]]:
-    """Validate domain, particles and ``delta_l``; return subdivided outlines."""
-    D, names = as_domain(domain)
-    outlines = as_particles(particles)
-    check_layout(D, outlines)
-    if outlines:
-        radii = [float(np.max(np.hypot(*(P - centroid(P)[:, None])))) for P in outlines]
-        k = int(np.argmin(radii))
-        delta_l = positive(delta_l, "delta_l", upper=radii[k],
-                           what=f" (circumradius of the smallest particle, particles[{k}])")
-    else:
-        delta_l = positive(delta_l, "delta_l")
-    return D, names, [subdivide(P, delta_l) for P in outlines]
-
-
 def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
                 sigma: float | None = None, delta_l: float | None = None, *,
                 relax_rounds: int = 4) -> skfem.MeshTri:
@@ -251,7 +190,7 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
         particles' outline vertex indices.
 
     The element size stops growing at half the domain's smallest width
-    (:data:`WIDTH_FRACTION`): past it the circles are equally spaced.
+    (:data:`meshing.inputs.WIDTH_FRACTION`): past it the circles are equally spaced.
 
     Quality: minimum angle >= 20 degrees and ``R / (2 r) <= 3`` (see
     :func:`meshing.mesh_stats`) whenever particles keep at least one outline
@@ -269,6 +208,7 @@ def graded_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = ()
                         relax_rounds=relax_rounds).mesh
 
 
+@builds("graded")
 def build_graded(domain: object, particles: object, *, sigma: float | None = None,
                  delta_l: float | None = None, relax_rounds: int = 4) -> BodyFittedMesh:
     """:func:`graded_mesh` as a :class:`~meshing.value.BodyFittedMesh`.

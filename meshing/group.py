@@ -18,16 +18,10 @@ from numpy.typing import NDArray
 
 from .cleanup import truncate, wall_nodes
 from .geometry import centroid, clip_convex, edge_distance, inside
-from .graded import (
-    check_rounds,
-    check_sigma,
-    prepare,
-    ring_nodes,
-    rings,
-    size_cap,
-    sizing_of,
-)
+from .graded import ring_nodes, rings, sizing_of
+from .inputs import check_rounds, check_sigma, prepare, size_cap
 from .pslg import Layout, fixed_point, triangulate
+from .registry import builds
 from .repair import build
 from .skfem_mesh import to_body_fitted
 from .uniform import AREA_FACTOR, MIN_ANGLE, split_walls
@@ -115,6 +109,7 @@ def group_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (),
                        radius=radius, relax_rounds=relax_rounds).mesh
 
 
+@builds("group")
 def build_group(domain: object, particles: object, *, h: float | None = None,
                 sigma: float | None = None, delta_l: float | None = None,
                 center: object = None, radius: float | None = None,

@@ -32,7 +32,8 @@ from .geometry import (
     project_to_edge,
     subdivide,
 )
-from .value import BodyFittedMesh, Recipe, build
+from .registry import build
+from .value import BodyFittedMesh, Recipe
 
 
 def _recipe(mesh: object) -> Recipe:

@@ -7,7 +7,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .geometry import centroids, edge_distance
-from .graded import size_cap
+from .inputs import size_cap
 
 NEAREST = 6
 """Particles (by centroid) searched for the nearest outline of a point."""
@@ -31,7 +31,7 @@ class SizeField:
     Calling the field at points ``x`` ``(2, M)`` gives ``min(grade(x), gap(x))``:
     ``grade = min(h_max, min_k dl_k + s_k d_k(x))`` (``d_k`` the distance to outline
     ``k``, ``s_k = sigma - 1``, ``h_max`` half the domain's smallest width,
-    :func:`meshing.graded.size_cap`) and, where the two nearest boundaries
+    :func:`meshing.inputs.size_cap`) and, where the two nearest boundaries
     (outlines or the wall) are closer together than two outline edges, half their
     distance.
     """

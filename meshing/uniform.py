@@ -7,8 +7,9 @@ import skfem
 from numpy.typing import NDArray
 
 from .geometry import MAX_ELEMENTS
-from .graded import prepare
+from .inputs import prepare
 from .pslg import Layout, fixed_point, triangulate
+from .registry import builds
 from .skfem_mesh import to_body_fitted
 from .value import BodyFittedMesh, Recipe
 
@@ -73,6 +74,7 @@ def uniform_mesh(domain: object = (0.0, 0.0, 3e-3, 11e-3), particles: object = (
     return build_uniform(domain, particles, h=h, delta_l=delta_l, min_angle=min_angle).mesh
 
 
+@builds("uniform")
 def build_uniform(domain: object, particles: object, *, h: float | None = None,
                   delta_l: float | None = None, min_angle: float = MIN_ANGLE
                   ) -> BodyFittedMesh:

@@ -1,4 +1,4 @@
-"""A mesh and its provenance as one value: :class:`BodyFittedMesh`, :func:`build`.
+"""A mesh and its provenance as one value: :class:`BodyFittedMesh`, :class:`Recipe`.
 
 scikit-fem meshes are dataclasses whose transforms (``replace``,
 ``with_boundaries``, ``refined``, ...) return new meshes, so anything set on a
@@ -9,8 +9,6 @@ next to the mesh in a :class:`BodyFittedMesh`, never on it.
 
 from __future__ import annotations
 
-import inspect
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -18,8 +16,7 @@ import numpy as np
 import skfem
 from numpy.typing import NDArray
 
-KINDS = ("graded", "uniform", "group", "field")
-"""The mesh kinds :func:`build` knows, one per public builder."""
+from .registry import build
 
 
 @dataclass(frozen=True)
@@ -29,7 +26,7 @@ class Recipe:
     Attributes
     ----------
     kind : str
-        ``"graded"``, ``"uniform"``, ``"group"`` or ``"field"`` (see :func:`build`).
+        ``"graded"``, ``"uniform"``, ``"group"`` or ``"field"`` (see :func:`meshing.build`).
     domain : object
         The ``domain`` argument as given to the builder.
     particles : tuple of ndarray
@@ -108,62 +105,3 @@ class BodyFittedMesh:
 def mesh_of(mesh: object) -> Any:
     """The ``skfem`` mesh of a :class:`BodyFittedMesh`, or ``mesh`` itself."""
     return mesh.mesh if isinstance(mesh, BodyFittedMesh) else mesh
-
-
-def build(kind: str, domain: object, particles: object, **options: Any) -> BodyFittedMesh:
-    """Build a body-fitted mesh of a given kind and keep its provenance.
-
-    Parameters
-    ----------
-    kind
-        ``"graded"`` (:func:`meshing.graded_mesh`), ``"uniform"``
-        (:func:`meshing.uniform_mesh`), ``"group"`` (:func:`meshing.group_mesh`)
-        or ``"field"`` (:func:`meshing.field_mesh`).
-    domain, particles
-        As for the builder.
-    **options
-        The builder's keyword arguments (e.g. ``sigma``, ``delta_l``, ``h``,
-        ``relax_rounds``); omitted ones take the builder's defaults.
-
-    Returns
-    -------
-    BodyFittedMesh
-        ``.mesh`` is exactly the builder's mesh; ``.recipe`` and
-        ``.particle_nodes`` record how it was built and where the particles are.
-
-    Raises
-    ------
-    ValueError
-        For an unknown ``kind`` and for any input the builder rejects.
-    TypeError
-        For an option the builder does not have.
-
-    Examples
-    --------
-    >>> import numpy as np, meshing
-    >>> th = 2 * np.pi * np.arange(24) / 24
-    >>> disk = np.vstack([1.5e-3 + 5e-4 * np.cos(th), 5.5e-3 + 5e-4 * np.sin(th)])
-    >>> value = meshing.build("graded", (0, 0, 3e-3, 11e-3), [disk])
-    >>> value.recipe.kind, len(value.particle_nodes)
-    ('graded', 1)
-    >>> bool(np.all(value.mesh.p[:, value.particle_nodes[0]] == disk))
-    True
-    """
-    # imported here: the builders themselves import this module
-    from .field import build_field
-    from .graded import build_graded
-    from .group import build_group
-    from .uniform import build_uniform
-
-    builders: dict[str, Callable[..., BodyFittedMesh]] = {
-        "graded": build_graded, "uniform": build_uniform, "group": build_group,
-        "field": build_field}
-    if not isinstance(kind, str) or kind not in builders:
-        raise ValueError(f"kind: expected one of {', '.join(map(repr, KINDS))}, got {kind!r}")
-    builder = builders[kind]
-    accepted = list(inspect.signature(builder).parameters)[2:]
-    unknown = [k for k in options if k not in accepted]
-    if unknown:
-        raise TypeError(f"options: {', '.join(map(repr, unknown))} not accepted by kind "
-                        f"{kind!r} (accepted: {', '.join(accepted)})")
-    return builder(domain, particles, **options)

@@ -402,11 +402,13 @@ def _render(args) -> int:
 def _study(args) -> int:
     """``skfem-granular study``: run or resume a study, print the table's path and orders."""
     from . import studies
+    from .studies.plots import require_matplotlib
 
     out = args.out or f"out/study_{args.study.replace('-', '_')}{'_smoke' if args.smoke else ''}"
     try:
         if args.workers < 1:
             raise ValueError(f"--workers = {args.workers}: must be an integer >= 1")
+        require_matplotlib()  # before any run and before the output folder is made
         _check_out("--out", out)
         res = studies.run_study(args.study, out, smoke=args.smoke, workers=args.workers,
                                 log=lambda m: print(m, flush=True))

@@ -76,6 +76,8 @@ CLI = [
      ["time.tol = nan", "> 0 and <= 1"]),
     ("adaptive-string", scene("[time]\nt_end = 1e-3\ndt = 1e-5\nadaptive = 'yes'\n"), [],
      ["time.adaptive = 'yes'", "true or false"]),
+    ("contact_warning-string", scene("[time]\nt_end = 1e-3\ndt = 1e-5\ncontact_warning = 'no'\n"),
+     [], ["time.contact_warning = 'no'", "true or false"]),
     ("dt_min-above-dt", scene("[time]\nt_end = 1e-3\ndt = 1e-5\ndt_min = 1e-4\n"), [],
      ["time.dt_min = 0.0001", "<= time.dt"]),
     ("dem_dt-unstable", scene("[time]\nt_end = 1e-3\ndt = 1e-5\ndem_dt = 1.0\n"), [],

@@ -253,7 +253,7 @@ def test_bad_motion_in_python():
         PrescribedMotion(velocity="x")
 
 
-# ---------------------------------------------------------------------- slow: issue 12, 40 ms
+# ---------------------------------------------------------------------- slow, 40 ms
 @pytest.fixture(scope="module")
 def free_and_replayed_40ms():
     """The paper's particle 40 ms in a 3 x 20 mm box (released at y = 15 mm) free, then
@@ -299,7 +299,7 @@ def _remesh_spikes(t, F, steps, window=8, affected=3):
 
 @pytest.mark.slow
 def test_force_consistency_over_40ms(free_and_replayed_40ms):
-    """Issue 12: the free and the imposed run's fluid forces within 0.5 % over the run."""
+    """The free and the imposed run's fluid forces within 0.5 % over the run."""
     h, g, steps_free, steps_imposed, weight = free_and_replayed_40ms
     assert steps_free == steps_imposed and len(steps_free) >= 3
     F1 = np.hypot(h.Fx[:, 0], h.Fy[:, 0])
@@ -309,7 +309,7 @@ def test_force_consistency_over_40ms(free_and_replayed_40ms):
 
 @pytest.mark.slow
 def test_no_force_spike_on_remesh_steps(free_and_replayed_40ms):
-    """Issue 12: below 5 % of the immersed weight on the steps after a remesh (measured
+    """Below 5 % of the immersed weight on the steps after a remesh (measured
     0.2 %, a level shift of the new mesh; 46 % before the remesh projected the transferred
     histories onto divergence-free fields)."""
     h, g, steps_free, steps_imposed, weight = free_and_replayed_40ms

@@ -220,7 +220,7 @@ def test_size_against_the_group_mesh_and_growth():
 
 
 def test_spread_layer_costs_more_than_a_block():
-    """Issue 13 asked for <= 1.2 x; measured 2.20 x (1.39 x before the gap edges were
+    """The aim was <= 1.2 x; measured 2.20 x (1.39 x before the gap edges were
     split: the fine layer follows every exposed core, and the 25 floor gaps of 0.087 mm
     are lined at a third of their width): recorded, not met (docs/meshing.md)."""
     def dofs(parts):
@@ -310,7 +310,7 @@ def test_scene_default_is_graded_for_one_particle_and_field_for_more():
 
 
 #: vertices and triangles of the single particle's graded mesh (main at 2924d56, before
-#: issue 13, and today: the same bits on one machine). The bits themselves depend on the
+#: the size-field mesh, and today: the same bits on one machine). The bits themselves depend on the
 #: CPU: numpy's vectorised sin/cos differ in the last bit between AVX-512 and AVX2 builds,
 #: and Triangle's output follows (a sha256 recorded on one machine failed on an AMD EPYC
 #: without AVX-512, where 2924d56 and this code give the same bits as each other).

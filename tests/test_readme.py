@@ -8,7 +8,8 @@
   ``skfem-granular`` command, run
   here in order in a scratch directory and required to exit 0;
 - every fenced ``python`` block runs (in that directory);
-- every relative link points to a file of the checkout.
+- every relative link points to a file of the checkout;
+- the getting-started page quotes the README's test run time, not its own.
 """
 
 from __future__ import annotations
@@ -99,3 +100,12 @@ def test_readme_links_exist():
     assert local
     missing = [link for link in local if not (ROOT / link).exists()]
     assert missing == []
+
+
+def test_getting_started_quotes_the_readme_test_time():
+    """The default test run's time is measured once, in the README; the getting-started
+    page says the same."""
+    pattern = re.compile(r"about (\d+) min on 2 cores")
+    readme = pattern.findall(README.read_text())
+    page = pattern.findall((ROOT / "docs" / "getting_started.md").read_text())
+    assert len(readme) == 1 and page == readme

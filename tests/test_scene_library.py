@@ -11,7 +11,7 @@ from skfem_granular.cli import main
 from skfem_granular.scene import Scene, bundled, bundled_scenes
 
 PAPER = ("collapse", "collapse_group", "single_particle", "single_particle_fine")
-#: issue 14's sedimentation and repose checks
+#: the sedimentation and repose checks (docs/sedimentation.md)
 SEDIMENTATION = ("dkt_two_disks", "dkt_uhlmann", "migration_off_centre", "repose_hexagons",
                  "settling_disk_channel", "settling_disk_k3", "settling_disk_k8_tall",
                  "settling_hexagon", "settling_rectangle")
@@ -53,6 +53,27 @@ def test_bundled_scenes_keep_the_paper_numbers():
         col.domain, col.time, col.contact_law, col.mesh.delta_l)
     for a, b in zip(grp.particles, col.particles, strict=True):
         np.testing.assert_array_equal(a.polygon.vertices, b.polygon.vertices)
+
+
+@pytest.mark.parametrize("name", ["collapse", "collapse_group"])
+def test_collapse_steps_coarse_at_contacts_on_purpose_without_a_warning(name):
+    """The collapse's 0.2 ms steps are ~50 DEM stable steps: the scene says so
+    (time.contact_warning = false) and is not warned about; the same scene without
+    that line is."""
+    from dataclasses import replace
+
+    from skfem_granular.dem import DEMSystem
+    from skfem_granular.simulation.effects import scene_warnings
+
+    sc = Scene.bundled(name)
+    assert sc.effects.contacts is True and not sc.time.adaptive and not sc.time.contact_warning
+    dem = DEMSystem.in_box([p.to_dem() for p in sc.particles], sc.domain, sc.wall_thickness,
+                           law=sc.contact_law)
+    assert sc.time.dt > 40 * dem.dt_stable
+    assert scene_warnings(sc, dem, True) == []
+    user = replace(sc, time=replace(sc.time, contact_warning=True))
+    (w,) = scene_warnings(user, dem, True)
+    assert w.startswith("time.dt = 0.0002 s does not resolve a contact")
 
 
 @pytest.mark.parametrize("spelling", ["single-particle", "single_particle", "single_particle.toml",
@@ -112,7 +133,7 @@ def test_cli_unknown_scene_is_a_missing_file(tmp_path, monkeypatch, capsys):
 
 
 def test_sedimentation_scenes_keep_the_published_set_ups():
-    """cgs set-ups of issue 14 converted to SI (docs/sedimentation.md)."""
+    """cgs set-ups of the sedimentation checks converted to SI (docs/sedimentation.md)."""
     sc = {n: Scene.bundled(n) for n in SEDIMENTATION}
     g = sc["settling_disk_channel"]
     assert g.domain == (0.0, 0.0, 0.02, 0.06) and g.fluid.viscosity == 0.01

@@ -1,6 +1,7 @@
-"""Issue 14, the short versions: the particle-frame terminal velocity (check 1's second
-route), the quantities the sedimentation benchmarks extract (on synthetic histories with
-known answers), the literature data file, and the bundled scenes' first steps."""
+"""The sedimentation checks, the short versions: the particle-frame terminal velocity
+(check 1's second route), the quantities the sedimentation benchmarks extract (on synthetic
+histories with known answers), the literature data file, and the bundled scenes' first
+steps."""
 
 import math
 from dataclasses import replace

@@ -1,4 +1,4 @@
-"""Issue 14, check 7 in smoke mode: the accuracy-vs-cost study of the settling disk
+"""Sedimentation check 7 in smoke mode: the accuracy-vs-cost study of the settling disk
 (:mod:`skfem_granular.studies.settling`) over outline resolution, grading, time step,
 remesh threshold and mesh motion, on 6 ms of the fall (seconds in all)."""
 

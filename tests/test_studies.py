@@ -5,6 +5,7 @@ Tiny grids (a few seconds of runs); the full grids are `skfem-granular study ...
 
 import csv
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -147,6 +148,34 @@ def test_cli_bad_input_one_line_exit_2(argv, text, capsys, tmp_path):
     assert main(argv + ["--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and text in err[0]
+
+
+def test_missing_matplotlib_stops_a_study_before_its_first_run(tmp_path, capsys, monkeypatch):
+    """A base install (no plot extra): one line naming matplotlib and the extra, exit
+    status 2, nothing run and no output folder; the library raises before submitting."""
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib: ImportError
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("a run was started")
+
+    monkeypatch.setattr(studies.driver, "local_pool", no_run)
+    out = tmp_path / "s"
+    assert main(["study", "faxen", "--smoke", "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert captured.out == "" and len(err) == 1
+    assert "matplotlib" in err[0] and "pip install 'skfem-granular[plot]'" in err[0]
+    assert not out.exists()
+
+    class Refuses:
+        submit = staticmethod(no_run)
+
+    with pytest.raises(ImportError, match=r"matplotlib.*skfem-granular\[plot\]"):
+        studies.run_study("faxen", tmp_path / "lib", runs=FAXEN_RUNS[:1], executor=Refuses())
+    assert not (tmp_path / "lib").exists()
+    # without figures a study needs no matplotlib (the runs themselves are not started here)
+    res = studies.run_study("faxen", tmp_path / "none", runs=[], plots=False)
+    assert res.rows == [] and res.files
 
 
 def test_cli_smoke_study_writes_table_and_figures(tmp_path, capsys):

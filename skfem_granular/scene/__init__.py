@@ -30,7 +30,7 @@ meaning: :func:`.reference.scene_reference`, the docs' scene-file reference)::
     [contacts]  E, mu, gamma
     [mesh]      kind = "auto" | "graded" | "field" | "uniform" | "group", delta_l, sigma,
                 h, gap_spacing, wake
-    [time]      t_end, dt, dem_dt, adaptive, tol, dt_min
+    [time]      t_end, dt, dem_dt, adaptive, tol, dt_min, contact_warning
     [effects]   fluid, gravity, convection, contacts, rotation, remeshing
     [coupling]  scheme = "monolithic" | "partitioned", remesh_fraction,
                 mesh_motion = "fixed" | "ale", remesh_travel, newton_tol

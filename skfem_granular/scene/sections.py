@@ -152,6 +152,10 @@ class TimeSpec:
     dt_min : float
         Smallest step of an adaptive run; a step that would need less stops
         the run with a clear error.
+    contact_warning : bool
+        Warn when fixed steps with contacts are longer than a contact needs
+        (bounces come out more damped than the contact law makes them); false
+        for a scene whose step is coarse on purpose.
     """
 
     t_end: float = 1e-3
@@ -160,6 +164,7 @@ class TimeSpec:
     adaptive: bool = False
     tol: float = 1e-3
     dt_min: float = 1e-12
+    contact_warning: bool = True
 
     def __post_init__(self):
         object.__setattr__(self, "t_end", num("time", "t_end", self.t_end, lo=0))
@@ -175,6 +180,9 @@ class TimeSpec:
         object.__setattr__(self, "dt_min", num("time", "dt_min", self.dt_min, lo=0))
         if self.dt_min > self.dt:
             raise ValueError(f"time.dt_min = {self.dt_min:g}: must be <= time.dt = {self.dt:g}")
+        if not isinstance(self.contact_warning, bool):
+            raise ValueError(f"time.contact_warning = {self.contact_warning!r}: must be true "
+                             "or false")
 
 
 #: The TOML keys of ``[time]``: one per field of :class:`TimeSpec`.
@@ -190,6 +198,9 @@ TIME_DOCS: Docs = {
                   "scale", "> 0 and <= 1"),
     "dt_min": KeyDoc("float", "adaptive steps: the smallest; a step that would need less "
                      "stops the run", "> 0 and <= time.dt", "s"),
+    "contact_warning": KeyDoc("bool", "warn when fixed steps with contacts exceed 1.25 DEM "
+                              "stable steps (bounces more damped than the contact law); "
+                              "false: the step is coarse on purpose", _BOOL),
 }
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from .analysis import analyse
 from .definitions import Run, plan
-from .plots import all_plots
+from .plots import all_plots, require_matplotlib
 from .tables import write_tables
 from .worker import execute
 
@@ -59,10 +59,15 @@ def run_study(study: str, out_dir, *, smoke: bool = False, executor: Executor | 
         default a local process pool of ``workers`` processes, a fresh one per run.
     runs : list of Run, optional
         A subset (or another grid) instead of :func:`plan`'s.
+    plots : bool
+        Write the figures too (matplotlib, the ``plot`` extra: checked before the first
+        run, ImportError if missing).
     """
     runs = plan(study, smoke) if runs is None else list(runs)
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
         raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
+    if plots:
+        require_matplotlib()
     out_dir = Path(out_dir)
     (out_dir / "runs").mkdir(parents=True, exist_ok=True)
     done = load_records(out_dir, runs)

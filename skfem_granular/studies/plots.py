@@ -11,6 +11,16 @@ from .analysis import orders, pareto_front, sweet_spot
 STYLE = {"uniform": ("o", "C0"), "graded": ("s", "C1"), "sigma": ("^", "C2"), "dt": ("D", "C3")}
 
 
+def require_matplotlib() -> None:
+    """Raise ImportError, naming the package and the extra to install, unless matplotlib
+    imports: the figures come after every run, so a study checks this before the first."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(f"the study's figures need matplotlib ({exc}); install it with "
+                          "pip install 'skfem-granular[plot]'") from exc
+
+
 def _plt():
     import matplotlib
 
