@@ -244,7 +244,7 @@ class AcceptedStep:
 
 def accept_step(attempt, step: float, *, failure=ArithmeticError, max_halvings: int,
                 controller: StepController | None = None, estimate=None,
-                max_rejections: int = 0, undo=None, dt_min: float | None = None) -> AcceptedStep:
+                max_rejections: int = 0, dt_min: float | None = None) -> AcceptedStep:
     """Try steps until one is accepted: halve on solver failure, retry on rejection.
 
     The one step-acceptance loop of the package (fluid-only and coupled runs).
@@ -252,7 +252,8 @@ def accept_step(attempt, step: float, *, failure=ArithmeticError, max_halvings: 
     Parameters
     ----------
     attempt : callable
-        ``attempt(step) -> result``; raises ``failure`` when its solve fails.
+        ``attempt(step) -> result``; raises ``failure`` when its solve fails. An attempt
+        changes nothing that a failed or rejected one would have to undo.
     step : float
         The first step size to try.
     failure : type or tuple of types
@@ -266,9 +267,6 @@ def accept_step(attempt, step: float, *, failure=ArithmeticError, max_halvings: 
         (``None``: no estimate, the step is accepted as it is).
     max_rejections : int
         Rejections by the error control allowed before giving up.
-    undo : callable, optional
-        Called after every failed or rejected attempt (restore state the
-        attempt changed).
     dt_min : float, optional
         Smallest step (default ``controller.dt_min``, or 0 without a controller).
 
@@ -292,8 +290,6 @@ def accept_step(attempt, step: float, *, failure=ArithmeticError, max_halvings: 
                 result = attempt(step)
                 break
             except failure as exc:
-                if undo is not None:
-                    undo()
                 if k == max_halvings or step <= dt_min:
                     raise StepFailedError("halvings", step, None, halvings, rejections) from exc
                 halvings += 1
@@ -304,8 +300,6 @@ def accept_step(attempt, step: float, *, failure=ArithmeticError, max_halvings: 
         accepted, proposal = (True, step) if err is None else controller.propose(step, err)
         if accepted:
             return AcceptedStep(result, step, err, proposal, halvings, rejections)
-        if undo is not None:
-            undo()
         rejections += 1
         if rejections > max_rejections or step <= dt_min:
             raise StepFailedError("rejections", step, err, halvings, rejections)
