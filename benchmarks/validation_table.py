@@ -40,7 +40,7 @@ import test_simulation as tsim  # noqa: E402
 from helpers import annulus, box, regular_polygon  # noqa: E402
 
 import skfem_granular as sg  # noqa: E402
-from skfem_granular.coupled import PartitionedCoupling  # noqa: E402
+from skfem_granular.coupled import PartitionedCoupling, Staggering  # noqa: E402
 from skfem_granular.fluid import ConvergenceError  # noqa: E402
 from skfem_granular.scene import Scene  # noqa: E402
 from skfem_granular.simulation import Simulation  # noqa: E402
@@ -212,7 +212,8 @@ def added_mass_case():
         mono, _ = tc._release(space, area, rho_p, dt=1e-5, convection=False)
         try:
             part, _ = tc._release(space, area, rho_p, cls=PartitionedCoupling, dt=1e-5,
-                                  subiterations=40, relaxation=1.0, convection=False)
+                                  staggering=Staggering(subiterations=40, relaxation=1.0),
+                                  convection=False)
             row["partitioned"] = {"status": "converged", "acc": part,
                                   "rel_diff_vs_monolithic_stokes": abs(part / mono - 1),
                                   "rel_err": abs(part / exact - 1)}

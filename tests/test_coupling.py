@@ -5,7 +5,13 @@ import pytest
 from helpers import annulus, box, regular_polygon
 
 import skfem_granular as sg
-from skfem_granular.coupled import MonolithicCoupling, PartitionedCoupling, StepProblem
+from skfem_granular.coupled import (
+    MonolithicCoupling,
+    PartitionedCoupling,
+    RigidBodies,
+    Staggering,
+    StepProblem,
+)
 from skfem_granular.fluid import ConvergenceError
 from skfem_granular.timestep import BDF2
 
@@ -33,7 +39,8 @@ def added_mass_acceleration(rho_p, rho_f, a, b, g):
 def _release(space, area, rho_p, cls=MonolithicCoupling, dt=1e-5, **kw):
     fluid = sg.Fluid(1000.0, 1e-3)
     m = rho_p * area
-    c = cls(space, fluid, {"wall": (0.0, 0.0)}, np.zeros((2, 1)), [m], [0.5 * m * A_IN**2], **kw)
+    bodies = RigidBodies(np.zeros((2, 1)), [m], [0.5 * m * A_IN**2])
+    c = cls(space, fluid, {"wall": (0.0, 0.0)}, bodies, **kw)
     F_ext = np.array([[0.0], [-(rho_p - fluid.density) * area * G]])
     res = c.step(StepProblem(bdf2=BDF2(dt), t_new=dt, u_n=np.zeros(space.nu),
                              xi_n=np.zeros((3, 1)), F_ext=F_ext, T_ext=np.zeros(1)))
@@ -67,8 +74,7 @@ def test_partitioned_coupling_light_particle_is_detected(released):
             area,
             100.0,
             cls=PartitionedCoupling,
-            subiterations=40,
-            relaxation=1.0,
+            staggering=Staggering(subiterations=40, relaxation=1.0),
             convection=False,
         )
 
@@ -82,8 +88,7 @@ def test_partitioned_heavy_particle_converges_to_monolithic(released):
         area,
         10000.0,
         cls=PartitionedCoupling,
-        subiterations=14,
-        relaxation=1.0,
+        staggering=Staggering(subiterations=14, relaxation=1.0),
         convection=False,
     )
     assert part == pytest.approx(mono, rel=1e-4)
@@ -99,15 +104,8 @@ def test_faxen_drag_through_coupled_path():
     k = 1 / 3
     mesh = box(-6.0, -1.0, 6.0, 1.0, 0.02, hole=regular_polygon(160, k))
     space = sg.TaylorHood(mesh)
-    c = MonolithicCoupling(
-        space,
-        sg.Fluid(1.0, 1.0),
-        {"wall": (0.0, 0.0)},
-        np.zeros((2, 1)),
-        [1e12],
-        [1e12],
-        convection=False,
-    )
+    c = MonolithicCoupling(space, sg.Fluid(1.0, 1.0), {"wall": (0.0, 0.0)},
+                           RigidBodies(np.zeros((2, 1)), [1e12], [1e12]), convection=False)
     xi = np.array([[1.0], [0.0], [0.0]])
     dt = 1e4  # the unsteady term vanishes: one step is the steady Stokes problem
     res = c.step(StepProblem(bdf2=BDF2(dt), t_new=dt, u_n=np.zeros(space.nu), xi_n=xi,
@@ -123,8 +121,9 @@ def test_partitioned_with_aitken_relaxation_reaches_monolithic(released, ratio):
     """Aitken relaxation makes the sub-iterations converge where plain iteration diverges."""
     space, area = released
     mono, _ = _release(space, area, 1000.0 * ratio, convection=False)
-    part, _ = _release(space, area, 1000.0 * ratio, cls=PartitionedCoupling, subiterations=30,
-                       relaxation="aitken", convection=False)
+    part, _ = _release(space, area, 1000.0 * ratio, cls=PartitionedCoupling,
+                       staggering=Staggering(subiterations=30, relaxation="aitken"),
+                       convection=False)
     assert part == pytest.approx(mono, rel=1e-6)
 
 
@@ -140,7 +139,7 @@ def test_a_dropped_coupling_and_its_space_are_freed_without_the_cycle_collector(
     space = sg.TaylorHood(mesh)
     moved = space.moved(mesh.p + 1e-3 * np.sin(np.pi * mesh.p) * (mesh.p > 0))
     c = MonolithicCoupling(space, sg.Fluid(1.0, 1.0), {"wall": (0.0, 0.0)},
-                           np.array([[0.5], [0.5]]), [1.0], [1.0])
+                           RigidBodies(np.array([[0.5], [0.5]]), [1.0], [1.0]))
     c.step(StepProblem(bdf2=BDF2(1e-2), t_new=1e-2, u_n=np.zeros(space.nu),
                        xi_n=np.zeros((3, 1)), F_ext=np.array([[0.0], [-1.0]]), T_ext=np.zeros(1)))
     c.move(moved, np.array([[0.5], [0.5]]), np.zeros(space.nu))

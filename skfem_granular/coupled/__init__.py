@@ -23,13 +23,14 @@
 """
 
 from .monolithic import MonolithicCoupling
-from .partitioned import PartitionedCoupling
+from .partitioned import PartitionedCoupling, Staggering
 from .problem import StepProblem, StepSolution
-from .rigid import RigidParticles
+from .rigid import CorrectorOptions, RigidBodies, RigidParticles
 from .state import CoupledState, StepReport
 from .stepper import CoupledStepper, SimulationError
 from .transfer import FieldTransfer, lag
 
-__all__ = ["CoupledState", "CoupledStepper", "FieldTransfer", "MonolithicCoupling",
-           "PartitionedCoupling", "RigidParticles", "SimulationError", "StepProblem",
+__all__ = ["CorrectorOptions", "CoupledState", "CoupledStepper", "FieldTransfer",
+           "MonolithicCoupling", "PartitionedCoupling", "RigidBodies", "RigidParticles",
+           "Staggering", "SimulationError", "StepProblem",
            "StepReport", "StepSolution", "lag"]

@@ -82,13 +82,16 @@ def build_coupling(scene, mesh, dem, centers=None, terms=None, assembly="compile
     ``assembly``: how the built-in blocks are assembled (:class:`TaylorHood`)."""
     from .monolithic import MonolithicCoupling
     from .partitioned import PartitionedCoupling
+    from .rigid import CorrectorOptions, RigidBodies
 
     space = TaylorHood(mesh, assembly=assembly)
     walls = {"wall": (0.0, 0.0)}
     centers = dem.positions.copy() if centers is None else np.array(centers, dtype=float)
-    args = (space, scene.fluid, walls, centers, dem.mass.copy(), dem.inertia.copy())
-    common = dict(convection=scene.effects.convection, rotation=scene.effects.rotation,
-                  imposed=dem.imposed.copy(), terms=terms)
+    bodies = RigidBodies(centers, dem.mass.copy(), dem.inertia.copy(),
+                         imposed=dem.imposed.copy(), rotation=scene.effects.rotation)
+    common = dict(convection=scene.effects.convection, terms=terms)
     if scene.coupling == "monolithic":
-        return MonolithicCoupling(*args, newton_tol=scene.newton_tol, **common)
-    return PartitionedCoupling(*args, **common)
+        return MonolithicCoupling(space, scene.fluid, walls, bodies,
+                                  corrector=CorrectorOptions(newton_tol=scene.newton_tol),
+                                  **common)
+    return PartitionedCoupling(space, scene.fluid, walls, bodies, **common)

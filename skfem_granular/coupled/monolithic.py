@@ -55,7 +55,7 @@ from ..fluid.factor_cache import FactorCache
 from ..fluid.linsolve import make_solver
 from ..fluid.newton import ChordStall, chord_converged, newton_iterate
 from .problem import StepProblem, StepSolution
-from .rigid import RigidParticles
+from .rigid import CorrectorOptions, RigidBodies, RigidParticles
 
 #: A factorisation made anew (new ``a0``; a new mesh the stepper marks so) is of the Newton
 #: Jacobian at the first iterate when the last one was (``False``: of the linear BDF2-Stokes
@@ -75,23 +75,16 @@ class MonolithicCoupling(RigidParticles):
     fluid : Fluid
     walls : dict
         ``{boundary name: velocity spec}`` of the fixed walls.
-    centers : (2, K) ndarray
-        Reference centres of the particles on this mesh.
-    mass, inertia : (K,) ndarray
-        Particle masses and moments of inertia (per unit depth).
+    bodies : RigidBodies
+        The particles (reference centres, masses, inertias); particles with a
+        prescribed motion have no rigid DOFs in the system (their boundary values are
+        Dirichlet data, ``StepProblem.xi_imposed``), the fluid force on them is the same
+        consistent reaction ``-P_k^T R_f``; without ``rotation`` ``omega = 0``.
     convection : bool
         Navier-Stokes or unsteady Stokes.
-    rotation : bool
-        Solve for the angular velocities (``False`` keeps ``omega = 0``).
-    solver : str
-        Linear solver name (:func:`~skfem_granular.fluid.linsolve.make_solver`).
-    newton_tol : float
-        Iterations stop when the update is below ``newton_tol`` times the
-        velocity scale.
-    imposed : (K,) array_like of bool, optional
-        Particles with a prescribed motion: no rigid DOFs of theirs in the system
-        (their boundary values are Dirichlet data, ``step(xi_imposed=...)``); the
-        fluid force on them is the same consistent reaction ``-P_k^T R_f``.
+    corrector : CorrectorOptions, optional
+        Linear solver, and the iterations' tolerance (relative to the velocity scale)
+        and limit.
     terms : UserTerms, optional
         scikit-fem forms added to the fluid equations
         (:class:`~skfem_granular.fluid.user_terms.UserTerms`), assembled at ``t_new`` on
@@ -99,18 +92,17 @@ class MonolithicCoupling(RigidParticles):
         factorised, and a step iterates to ``newton_tol`` even for Stokes.
     """
 
-    def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
-                 convection: bool = True, rotation: bool = True, solver: str = "auto",
-                 newton_tol: float = 1e-8, max_iterations: int = 15, imposed=None,
+    def __init__(self, space, fluid, walls: dict, bodies: RigidBodies, *,
+                 convection: bool = True, corrector: CorrectorOptions | None = None,
                  terms=None):
-        super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
-                         rotation=rotation, imposed=imposed, terms=terms)
+        super().__init__(space, fluid, walls, bodies, convection=convection, terms=terms)
+        corrector = CorrectorOptions() if corrector is None else corrector
         # the imposed particles' rigid velocities of the step
         self._xi_imposed: np.ndarray | None = None
-        self.newton_tol = newton_tol
-        self.max_iterations = max_iterations
+        self.newton_tol = corrector.newton_tol
+        self.max_iterations = corrector.max_iterations
         self._build_prolongation()
-        self.solver = make_solver(solver, self.nz)
+        self.solver = make_solver(corrector.solver, self.nz)
         # the cache holds the assembly through a weak reference: a bound method would make
         # coupling -> cache -> coupling a cycle, and a remeshed-away coupling (its blocks,
         # its factorisation) would stay in memory until Python's cyclic collector ran

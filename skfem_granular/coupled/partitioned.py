@@ -15,6 +15,7 @@ iteration. The divergence is detected and reported as a
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,7 +24,33 @@ from ..fluid.factor_cache import FactorCache
 from ..fluid.linsolve import make_solver
 from ..fluid.newton import newton_iterate
 from .problem import StepProblem, StepSolution
-from .rigid import RigidParticles
+from .rigid import CorrectorOptions, RigidBodies, RigidParticles
+
+
+@dataclass(frozen=True)
+class Staggering:
+    """The staggered scheme's iteration.
+
+    Attributes
+    ----------
+    subiterations : int
+        Fluid solves per step (1 = the plain explicit scheme).
+    relaxation : float or "aitken"
+        Under-relaxation of the particle velocity between sub-iterations, in (0, 1];
+        ``"aitken"``: dynamic Aitken Delta^2 relaxation.
+    coupling_tol : float
+        Sub-iterations stop when the particle velocity changes by less than this,
+        relative to the velocity scale.
+    """
+
+    subiterations: int = 20
+    relaxation: float | str = "aitken"
+    coupling_tol: float = 1e-8
+
+    def __post_init__(self):
+        r = self.relaxation
+        if r != "aitken" and not 0.0 < float(r) <= 1.0:
+            raise ValueError(f"relaxation = {r!r}: must be 'aitken' or in (0, 1]")
 
 
 class PartitionedCoupling(RigidParticles):
@@ -31,49 +58,27 @@ class PartitionedCoupling(RigidParticles):
 
     Parameters
     ----------
-    subiterations : int
-        Fluid solves per step (1 = the plain explicit scheme).
-    relaxation : float or "aitken"
-        Under-relaxation of the particle velocity between sub-iterations;
-        ``"aitken"``: dynamic Aitken Delta^2 relaxation.
-    coupling_tol : float
-        Sub-iterations stop when the particle velocity changes by less than
-        this, relative to the velocity scale.
-    imposed : (K,) array_like of bool, optional
-        Particles with a prescribed motion (``step(xi_imposed=...)``): their
-        velocities are the fluid's boundary data, no corrector.
+    space, fluid, walls, bodies, convection, terms
+        As for :class:`MonolithicCoupling` (particles with a prescribed motion: their
+        velocities are the fluid's boundary data, no corrector).
+    corrector : CorrectorOptions, optional
+        The fluid solves' linear solver, tolerance (default 1e-9) and iteration limit.
+    staggering : Staggering, optional
+        Sub-iterations, relaxation and their tolerance.
     """
 
-    def __init__(
-        self,
-        space,
-        fluid,
-        walls: dict,
-        centers,
-        mass,
-        inertia,
-        *,
-        convection: bool = True,
-        rotation: bool = True,
-        solver: str = "auto",
-        subiterations: int = 20,
-        relaxation="aitken",
-        coupling_tol: float = 1e-8,
-        newton_tol: float = 1e-9,
-        max_iterations: int = 15,
-        imposed=None,
-        terms=None,
-    ):
-        super().__init__(space, fluid, walls, centers, mass, inertia, convection=convection,
-                         rotation=rotation, imposed=imposed, terms=terms)
-        self.subiterations = int(subiterations)
-        if relaxation != "aitken" and not 0.0 < float(relaxation) <= 1.0:
-            raise ValueError(f"relaxation = {relaxation!r}: must be 'aitken' or in (0, 1]")
-        self.relaxation = relaxation
-        self.coupling_tol = float(coupling_tol)
-        self.newton_tol = newton_tol
-        self.max_iterations = max_iterations
-        self.solver = make_solver(solver, self.op.free.size)
+    def __init__(self, space, fluid, walls: dict, bodies: RigidBodies, *,
+                 convection: bool = True, corrector: CorrectorOptions | None = None,
+                 staggering: Staggering | None = None, terms=None):
+        super().__init__(space, fluid, walls, bodies, convection=convection, terms=terms)
+        corrector = CorrectorOptions(newton_tol=1e-9) if corrector is None else corrector
+        staggering = Staggering() if staggering is None else staggering
+        self.subiterations = int(staggering.subiterations)
+        self.relaxation = staggering.relaxation
+        self.coupling_tol = float(staggering.coupling_tol)
+        self.newton_tol = corrector.newton_tol
+        self.max_iterations = corrector.max_iterations
+        self.solver = make_solver(corrector.solver, self.op.free.size)
         self.factors = FactorCache(self.solver, self.op.reduced_bdf2_system, self.timings)
 
     def _boundary_values(self, x, xi, t):

@@ -9,6 +9,8 @@ consistent (reaction) force, read from the momentum residual on those DOFs.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -16,6 +18,54 @@ from ..fluid.boundary import DirichletData
 from ..fluid.factor_cache import FactorCache
 from ..fluid.forces import rigid_lever
 from ..fluid.operator import NavierStokesOperator
+
+
+@dataclass(frozen=True)
+class RigidBodies:
+    """The particles a coupling moves, as boundaries ``"particle{k}"`` of its mesh.
+
+    Parameters
+    ----------
+    centers : (2, K) array_like
+        Reference centres of the particles on the mesh.
+    mass, inertia : (K,) array_like
+        Masses and moments of inertia per unit depth.
+    imposed : (K,) array_like of bool, optional
+        Particles whose motion is prescribed: their rigid velocities are given to
+        each step (``StepProblem.xi_imposed``) as Dirichlet data, not solved for (with
+        their rotation, whatever ``rotation`` says); the fluid force on them is reported
+        as on the others. Default: none.
+    rotation : bool
+        Whether the free particles may rotate.
+    """
+
+    centers: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    imposed: np.ndarray | None = None
+    rotation: bool = True
+    K: int = field(init=False, repr=False)
+
+    def __post_init__(self):
+        K = int(np.asarray(self.mass).size)
+        object.__setattr__(self, "K", K)
+        object.__setattr__(self, "centers", np.asarray(self.centers, dtype=float).reshape(2, K))
+        object.__setattr__(self, "mass", np.asarray(self.mass, dtype=float).reshape(K))
+        object.__setattr__(self, "inertia", np.asarray(self.inertia, dtype=float).reshape(K))
+        object.__setattr__(self, "imposed", np.zeros(K, dtype=bool) if self.imposed is None
+                           else np.asarray(self.imposed, dtype=bool).reshape(K))
+        object.__setattr__(self, "rotation", bool(self.rotation))
+
+
+@dataclass(frozen=True)
+class CorrectorOptions:
+    """How a coupling's corrector solves: the linear solver
+    (:func:`~skfem_granular.fluid.linsolve.make_solver`), the stopping tolerance of its
+    iterations relative to the velocity scale, and their limit per step."""
+
+    solver: str = "auto"
+    newton_tol: float = 1e-8
+    max_iterations: int = 15
 
 
 class RigidParticles:
@@ -28,17 +78,10 @@ class RigidParticles:
     fluid : Fluid
     walls : dict
         ``{boundary name: velocity spec}`` of the fixed walls.
-    centers : (2, K) array_like
-        Reference centres of the particles on this mesh.
-    mass, inertia : (K,) array_like
-        Masses and moments of inertia per unit depth.
-    convection, rotation : bool
-        Navier-Stokes or unsteady Stokes; whether the free particles may rotate.
-    imposed : (K,) array_like of bool, optional
-        Particles whose motion is prescribed: their rigid velocities are given to
-        each step (``xi_imposed``) as Dirichlet data, not solved for (with their
-        rotation, whatever ``rotation`` says); the fluid force on them is reported
-        as on the others. Default: none.
+    bodies : RigidBodies
+        The particles: reference centres, masses, inertias, prescribed motions.
+    convection : bool
+        Navier-Stokes or unsteady Stokes.
     terms : UserTerms, optional
         scikit-fem forms added to the fluid equations
         (:class:`~skfem_granular.fluid.user_terms.UserTerms`); the consistent forces on
@@ -48,18 +91,15 @@ class RigidParticles:
     #: The factorisations of the step matrices (built by each coupling for its system).
     factors: FactorCache
 
-    def __init__(self, space, fluid, walls: dict, centers, mass, inertia, *,
-                 convection: bool = True, rotation: bool = True, imposed=None,
-                 terms=None):
+    def __init__(self, space, fluid, walls: dict, bodies: RigidBodies, *,
+                 convection: bool = True, terms=None):
         self.space = space
         self.fluid = fluid
-        self.K = int(np.asarray(mass).size)
-        self.centers = np.asarray(centers, dtype=float).reshape(2, self.K)
-        self.mass = np.asarray(mass, dtype=float).reshape(self.K)
-        self.inertia = np.asarray(inertia, dtype=float).reshape(self.K)
-        self.rotation = bool(rotation)
-        self.imposed = (np.zeros(self.K, dtype=bool) if imposed is None
-                        else np.asarray(imposed, dtype=bool).reshape(self.K))
+        self.K = bodies.K
+        self.centers = bodies.centers.copy()  # moved meshes take other centres (move())
+        self.mass, self.inertia = bodies.mass, bodies.inertia
+        self.rotation = bodies.rotation
+        self.imposed: np.ndarray = np.asarray(bodies.imposed, dtype=bool)
         #: the particles whose rigid velocities are unknowns
         self.free_particles = np.flatnonzero(~self.imposed)
         names = [f"particle{k}" for k in range(self.K)]
