@@ -11,6 +11,11 @@ import math
 
 import numpy as np
 
+#: Local worker processes a command may ask for (studies, collapses).
+MAX_WORKERS = 1024
+#: Seeds of random grain columns on the command line (numpy's 32-bit seed range).
+MAX_SEED = 2**32 - 1
+
 
 def positive(name: str, value, *, allow_zero: bool = False) -> float:
     """Return ``value`` as a float, or raise if it is not finite and positive."""
