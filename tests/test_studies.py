@@ -5,6 +5,7 @@ Tiny grids (a few seconds of runs); the full grids are `skfem-granular study ...
 
 import csv
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -170,3 +171,78 @@ def test_cli_smoke_study_writes_table_and_figures(tmp_path, capsys):
     assert float(fine["wall_time"]) > float(coarse["wall_time"])
     assert main(["study", "faxen", "--smoke", "--out", str(out)]) == 0  # resumed: nothing to do
     assert "0 runs computed, 18 reused" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- files written whole or not at all
+def test_failed_table_write_keeps_the_earlier_tables(faxen, tmp_path, monkeypatch):
+    """csv's writer failing after one row, then the Markdown write failing halfway: each
+    earlier table stays byte for byte, no temporary file is left, the other table is
+    written."""
+    import csv
+    import errno
+    import os
+
+    from helpers import fail_midway, partial_names
+
+    studies.write_tables(faxen.rows, tmp_path, "faxen", False)
+    before = {n: (tmp_path / n).read_bytes() for n in ("table.csv", "table.md")}
+    fewer = faxen.rows[:2]  # a write that got through would change both files
+
+    def writerows(self, rows):
+        self.writerow(next(iter(rows)))
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    with monkeypatch.context() as m:
+        m.setattr(csv.DictWriter, "writerows", writerows)
+        with pytest.raises(OSError, match="No space left"):
+            studies.write_tables(fewer, tmp_path, "faxen", False)
+    assert {n: (tmp_path / n).read_bytes() for n in before} == before
+    assert partial_names(tmp_path) == []
+    with monkeypatch.context() as m:
+        written = fail_midway(m, Path, "write_text", lambda self, *a: self)
+        with pytest.raises(OSError, match="No space left"):
+            studies.write_tables(fewer, tmp_path, "faxen", False)
+    assert written[0].parent == tmp_path and written[0].name.startswith(".partial-table-")
+    assert (tmp_path / "table.md").read_bytes() == before["table.md"]
+    assert (tmp_path / "table.csv").read_bytes() != before["table.csv"]  # written before it
+    assert partial_names(tmp_path) == []
+    studies.write_tables(fewer, tmp_path, "faxen", False)
+    assert (tmp_path / "table.md").read_bytes() != before["table.md"]
+
+
+def test_failed_figure_write_keeps_the_earlier_figure(faxen, tmp_path, monkeypatch):
+    """matplotlib's savefig writing half a PNG, then failing: the earlier figure stays byte
+    for byte, no temporary file, the figure closed."""
+    import matplotlib.pyplot as plt
+    from helpers import fail_midway, partial_names
+    from matplotlib.figure import Figure
+
+    studies.plot_pareto(faxen.rows, tmp_path / "pareto.png")
+    before = (tmp_path / "pareto.png").read_bytes()
+    written = fail_midway(monkeypatch, Figure, "savefig", lambda self, fname, *a: fname,
+                          data=b"\x89PNG half")
+    with pytest.raises(OSError, match="No space left"):
+        studies.plot_pareto(faxen.rows[:2], tmp_path / "pareto.png", title="another")
+    assert written[0].parent == tmp_path and written[0].name.startswith(".partial-pareto-")
+    assert (tmp_path / "pareto.png").read_bytes() == before
+    assert partial_names(tmp_path) == [] and plt.get_fignums() == []
+
+
+def test_failed_record_write_leaves_no_torn_record(faxen, tmp_path, monkeypatch):
+    """A run's record whose write fails halfway: no record file (the run is recomputed on
+    the next start, not read back torn), no temporary file; an earlier record stays."""
+    from helpers import fail_midway, partial_names
+
+    from skfem_granular.studies import driver
+
+    rec = json.loads(next((faxen.out_dir / "runs").glob("*.json")).read_text())
+    (tmp_path / "old.json").write_text("the earlier record")
+    fail_midway(monkeypatch, Path, "write_text",
+                lambda self, *a: self, data=b'{"spec": {"family": ')
+    with pytest.raises(OSError, match="No space left"):
+        driver._write_json(tmp_path / "new.json", rec)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.json"]
+    with pytest.raises(OSError, match="No space left"):
+        driver._write_json(tmp_path / "old.json", rec)
+    assert (tmp_path / "old.json").read_text() == "the earlier record"
+    assert partial_names(tmp_path) == []

@@ -138,6 +138,21 @@ def atomic_write(path, write, *, fsync: bool = False) -> Path:
     return Path(path)
 
 
+def write_text(path, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically (:func:`atomic_write`); returns ``path``."""
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+
+
+def save_figure(fig, path, **kwargs) -> Path:
+    """Save the matplotlib figure ``fig`` to ``path`` atomically; returns ``path``.
+
+    The format is taken from ``path``'s suffix (PNG without one); ``kwargs`` go to
+    ``fig.savefig`` (``dpi``).
+    """
+    fmt = Path(path).suffix[1:].lower() or "png"
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, format=fmt, **kwargs))
+
+
 def _fsync_path(path) -> None:
     fd = os.open(path, os.O_RDONLY)
     try:

@@ -5,11 +5,11 @@ the tables and figures."""
 from __future__ import annotations
 
 import json
-import os
 from concurrent.futures import Executor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from ..io import write_text
 from .analysis import analyse
 from .definitions import Run, plan
 from .plots import all_plots
@@ -108,6 +108,5 @@ def local_pool(workers: int) -> Executor:
 
 
 def _write_json(path, rec):
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(rec, indent=1))
-    os.replace(tmp, path)
+    """A run's record, written atomically (a failure leaves no file, never a torn one)."""
+    write_text(path, json.dumps(rec, indent=1))
