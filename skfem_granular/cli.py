@@ -15,8 +15,13 @@
   number (130, 143), also for a signal during start-up. A run that fails (a step that does
   not converge, output that cannot be written: a full disk) exits with code 1 and one line.
 - ``skfem-granular scenes`` lists the bundled scenes (name and first comment line).
-- ``skfem-granular render DIR --png PATH | --animation PATH`` draws a run's output.
-- ``skfem-granular study single-particle|faxen`` runs an accuracy-vs-cost study.
+- ``skfem-granular render DIR --png PATH | --animation PATH [--fps F] [--every N]`` draws a
+  run's output; the picture is written under a temporary name and renamed when complete
+  (a failed write: exit code 1, an earlier file of that name left as it was).
+- ``skfem-granular study single-particle|faxen [--out DIR] [--smoke] [--workers N]
+  [--overwrite]`` runs (or continues) an accuracy-vs-cost study. Its folder belongs to it:
+  one holding a simulation run's output is refused, one holding another study's unless
+  given ``--overwrite``, one a live process writes to (its lock file) always.
 - ``skfem-granular collapse N --out DIR [...]`` runs the loose/dense x dry/immersed collapse
   matrix (:mod:`skfem_granular.cli_collapse`).
 - ``skfem-granular pack N --out FILE.npz [--aspect A] [--state dense|loose] [--shape S]
@@ -118,7 +123,11 @@ def _parser() -> argparse.ArgumentParser:
     stu.add_argument("study", choices=["single-particle", "faxen"])
     stu.add_argument("--out", help="study directory (default: out/study_<study>[_smoke])")
     stu.add_argument("--smoke", action="store_true", help="small grid, short runs (minutes)")
-    stu.add_argument("--workers", type=int, default=2, help="local worker processes (default 2)")
+    stu.add_argument("--workers", type=int, default=2,
+                     help="local worker processes (default 2, at most 1024)")
+    stu.add_argument("--overwrite", action="store_true",
+                     help="replace the study output in --out (another study's, or this one's: "
+                          "every run computed again); the same study is otherwise continued")
     return p
 
 
@@ -462,7 +471,7 @@ def _study(args) -> int:
         in_range("--workers", args.workers, 1, MAX_WORKERS, integer=True)
         _check_out("--out", out)
         res = studies.run_study(args.study, out, smoke=args.smoke, workers=args.workers,
-                                log=lambda m: print(m, flush=True))
+                                overwrite=args.overwrite, log=lambda m: print(m, flush=True))
     except (ValueError, OSError, ImportError) as exc:  # ImportError: matplotlib (plot extra)
         print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2

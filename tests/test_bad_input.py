@@ -285,7 +285,8 @@ def test_cli_bad_input_one_line(tmp_path, capsys, text, args, expected):
 
 
 # The other commands: (id, command line, expected substrings); {TMP} is an empty folder
-# (not a run's), {FILE} a regular file in it. Refused before anything is read or written.
+# (not a run's), {FILE} a regular file in it, {RUN} a folder holding a simulation run's
+# output. Refused before anything is read or written.
 COMMANDS = [
     ("render-fps-tiny", ["render", "{TMP}", "--animation", "{TMP}/a.gif", "--fps", "1e-300"],
      ["--fps = 1e-300", "must be a finite number in [0.1, 100]"]),
@@ -316,6 +317,12 @@ COMMANDS = [
      ["--workers = 0", "must be an integer in [1, 1024]"]),
     ("study-workers-huge", ["study", "faxen", "--out", "{TMP}/s", "--workers", "100000"],
      ["--workers = 100000", "must be an integer in [1, 1024]"]),
+    ("study-out-holds-a-run", ["study", "faxen", "--out", "{RUN}"],
+     ["output folder '{RUN}'", "holds a simulation run's output (history.csv, summary.json)",
+      "a study needs a folder of its own"]),
+    ("study-out-holds-a-run-overwrite", ["study", "faxen", "--out", "{RUN}", "--overwrite"],
+     ["output folder '{RUN}'", "holds a simulation run's output (history.csv, summary.json)",
+      "a study needs a folder of its own"]),
     ("pack-n-zero", ["pack", "0", "--out", "{TMP}/p.npz"], ["n = 0", "integer in [1, 10000]"]),
     ("pack-n-huge", ["pack", "100000000", "--out", "{TMP}/p.npz"],
      ["n = 100000000", "integer in [1, 10000]"]),
@@ -368,9 +375,14 @@ def test_other_commands_bad_input_one_line(tmp_path, capsys, argv, expected):
     regular = tmp_path / "a_regular_file"
     regular.write_text("not a directory\n")
     (tmp_path / "d.png").mkdir()
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "history.csv").write_text("t,dt\n")
+    (run / "summary.json").write_text("{}")
 
     def fill(s):
-        return s.replace("{FILE}", str(regular)).replace("{TMP}", str(tmp_path))
+        return (s.replace("{FILE}", str(regular)).replace("{RUN}", str(run))
+                .replace("{TMP}", str(tmp_path)))
 
     before = sorted(tmp_path.rglob("*"))
     code = main([fill(a) for a in argv])
@@ -878,7 +890,7 @@ def table_markdown() -> str:
         lines.append(f"| {case} | {_cell(_what(text, args))} | {parts} |")
     lines += ["", "## Other commands (exit status 2)", "",
               "Refused before anything is read or written (`{TMP}`: a folder, `{FILE}`: a "
-              "regular file).", "",
+              "regular file, `{RUN}`: a folder holding a simulation run's output).", "",
               "| case | command | the one line contains |", "|---|---|---|"]
     for case, argv, expected in COMMANDS:
         parts = "; ".join(f"`{_cell(e)}`" for e in expected)

@@ -6,7 +6,9 @@ anything, :class:`OutputFolder` makes sure that the folder holds no other
 run's files (:func:`run_files`), unless the run was told to replace them
 (``overwrite``: the old run's files are removed first) or to continue them
 (``resume``: the files belong to the checkpoint's run). Files that are not a
-run's (a scene file, notes) are left alone and do not count.
+run's (a scene file, notes) are left alone and do not count. A study's folder
+(marked by :data:`STUDY_MARKER`) is never a run's, nor a run's folder a
+study's.
 
 While a run (or a study, :mod:`skfem_granular.studies`) writes, its folder
 holds a lock file, :data:`LOCK_NAME`, with the holder's process id and host
@@ -43,6 +45,9 @@ RUN_FILE_NAMES = ("history.csv", "summary.json", "checkpoint.npz", "checkpoint.p
                   "flow.pvd", "particles.pvd")
 #: The VTU frames a run writes.
 FRAME_PATTERN = re.compile(r"^(flow|particles)_\d{5}\.vtu$")
+#: The file that marks a study's folder (:mod:`skfem_granular.studies`), and its format.
+STUDY_MARKER = "study.json"
+STUDY_FORMAT = "skfem-granular study"
 #: The lock's temporary files: ``<LOCK_NAME>.<host>.<pid>.<random>.tmp`` (a lock being
 #: written) and ``.stale`` (a stale lock being taken over).
 LOCK_TEMP_PATTERN = re.compile(re.escape(LOCK_NAME)
@@ -66,6 +71,15 @@ def run_files(directory) -> list[Path]:
         return []
     return sorted(p for p in d.iterdir()
                   if (p.name in RUN_FILE_NAMES or FRAME_PATTERN.match(p.name)) and p.is_file())
+
+
+def study_in(directory) -> dict | None:
+    """The study whose output ``directory`` holds (its :data:`STUDY_MARKER`), or ``None``."""
+    try:
+        info = json.loads((Path(directory) / STUDY_MARKER).read_text())
+    except (OSError, ValueError):
+        return None
+    return info if isinstance(info, dict) and info.get("format") == STUDY_FORMAT else None
 
 
 def _alive(pid: int) -> bool:
@@ -324,6 +338,13 @@ class OutputFolder:
         self._check_files()
 
     def _check_files(self) -> None:
+        if self.mode == "resume":
+            return
+        study = study_in(self.directory)
+        if study is not None:
+            raise FolderInUseError(
+                f"output folder {str(self.directory)!r}: holds the output of the study "
+                f"{study.get('study')!r} ({STUDY_MARKER}); a run needs a folder of its own")
         if self.mode != "new":
             return
         found = run_files(self.directory)
