@@ -15,8 +15,13 @@
   number (130, 143), also for a signal during start-up. A run that fails (a step that does
   not converge, output that cannot be written: a full disk) exits with code 1 and one line.
 - ``skfem-granular scenes`` lists the bundled scenes (name and first comment line).
-- ``skfem-granular render DIR --png PATH | --animation PATH`` draws a run's output.
-- ``skfem-granular study single-particle|faxen`` runs an accuracy-vs-cost study.
+- ``skfem-granular render DIR --png PATH | --animation PATH [--fps F] [--every N]`` draws a
+  run's output; the picture is written under a temporary name and renamed when complete
+  (a failed write: exit code 1, an earlier file of that name left as it was).
+- ``skfem-granular study single-particle|faxen [--out DIR] [--smoke] [--workers N]
+  [--overwrite]`` runs (or continues) an accuracy-vs-cost study. Its folder belongs to it:
+  one holding a simulation run's output is refused, one holding another study's unless
+  given ``--overwrite``, one a live process writes to (its lock file) always.
 - ``skfem-granular collapse N --out DIR [...]`` runs the loose/dense x dry/immersed collapse
   matrix (:mod:`skfem_granular.cli_collapse`).
 - ``skfem-granular pack N --out FILE.npz [--aspect A] [--state dense|loose] [--shape S]
@@ -34,6 +39,8 @@ import argparse
 import gc
 import sys
 from dataclasses import replace
+
+from ._validate import MAX_SEED, MAX_WORKERS, in_range
 
 
 class _UsageError(Exception):
@@ -116,7 +123,11 @@ def _parser() -> argparse.ArgumentParser:
     stu.add_argument("study", choices=["single-particle", "faxen"])
     stu.add_argument("--out", help="study directory (default: out/study_<study>[_smoke])")
     stu.add_argument("--smoke", action="store_true", help="small grid, short runs (minutes)")
-    stu.add_argument("--workers", type=int, default=2, help="local worker processes (default 2)")
+    stu.add_argument("--workers", type=int, default=2,
+                     help="local worker processes (default 2, at most 1024)")
+    stu.add_argument("--overwrite", action="store_true",
+                     help="replace the study output in --out (another study's, or this one's: "
+                          "every run computed again); the same study is otherwise continued")
     return p
 
 
@@ -170,21 +181,45 @@ def _check_out(field: str, out) -> None:
         raise ValueError(f"{field} = {str(out)!r}: must be a writable directory; {exc}") from None
 
 
+def _pack_checks(args) -> None:
+    """``pack``'s numbers and output files, refused in one line naming the option, before the
+    column is prepared."""
+    from .scene.parse import MAX_PARTICLES
+
+    in_range("n", args.n, 1, MAX_PARTICLES, integer=True)
+    in_range("--aspect", args.aspect, 0.05, 20)
+    in_range("--seed", args.seed, 0, MAX_SEED, integer=True)
+    in_range("--size-ratio", args.size_ratio, 1, 4)
+    in_range("--d-mean", args.d_mean, 1e-5, 0.1)
+    if args.margin is not None:
+        in_range("--margin", args.margin, 0, 20)
+    _check_output_file("--out", _npz(args.out), (".npz",))
+    if args.scene:
+        _check_output_file("--scene", args.scene, None)
+
+
+def _npz(path):
+    """``path`` as :meth:`~skfem_granular.packing.Packing.save` writes it (``.npz`` added)."""
+    return path if str(path).endswith(".npz") else f"{path}.npz"
+
+
 def _pack(args) -> int:
     """``skfem-granular pack``: prepare, save, report (and write a scene)."""
     from pathlib import Path
 
     from .collapse import column_toml
+    from .io import atomic_write
     from .packing import prepare_column
 
     try:
+        _pack_checks(args)
         p = prepare_column(args.n, args.aspect, args.state, shape=args.shape, seed=args.seed,
                            size_ratio=args.size_ratio, d_mean=args.d_mean,
                            margin=args.margin)
         path = p.save(args.out)
         if args.scene:
-            Path(args.scene).write_text(column_toml(p, Path(path).resolve(),
-                                                    fluid=not args.dry))
+            text = column_toml(p, Path(path).resolve(), fluid=not args.dry)
+            atomic_write(args.scene, lambda tmp: Path(tmp).write_text(text))
     except (ValueError, OSError, RuntimeError) as exc:
         print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
@@ -298,8 +333,8 @@ def _budget(args):
         kw["max_steps"] = args.max_steps
     if args.max_elements is not None:
         kw["max_elements"] = args.max_elements
-    if args.max_memory is not None:
-        kw["max_memory"] = args.max_memory * 1e9
+    if args.max_memory is not None:  # checked in GB, as given (the budget's bound: 1e6 B)
+        kw["max_memory"] = in_range("--max-memory", args.max_memory, 1e-3, 1e6) * 1e9
     return Budget(**kw)
 
 
@@ -369,16 +404,23 @@ def _stopped_line(result) -> str:
 
 
 def _render(args) -> int:
+    """``skfem-granular render``: options and output paths checked before anything is read."""
     from pathlib import Path
 
     from . import viz
 
     out = Path(args.out)
     try:
-        if not (out / "flow.pvd").exists():
-            raise ValueError(f"out = {str(out)!r}: no flow.pvd there (run a fluid scene first)")
+        viz.check_fps(args.fps, "--fps")
+        in_range("--every", args.every, 1, integer=True)
         if not args.png and not args.animation:
             raise ValueError("render: give --png PATH and/or --animation PATH")
+        for option, path, suffixes in (("--png", args.png, (".png",)),
+                                       ("--animation", args.animation, (".gif", ".mp4"))):
+            if path:
+                _check_output_file(option, path, suffixes)
+        if not (out / "flow.pvd").exists():
+            raise ValueError(f"out = {str(out)!r}: no flow.pvd there (run a fluid scene first)")
         frames = viz.read_pvd(out / "flow.pvd")
         parts = viz.read_pvd(out / "particles.pvd") if (out / "particles.pvd").exists() else []
         if args.png:
@@ -394,9 +436,30 @@ def _render(args) -> int:
                               every=args.every, fps=args.fps)
             print(f"wrote {args.animation}")
     except (ValueError, ImportError) as exc:
-        print(f"skfem-granular: error: {exc}", file=sys.stderr)
+        print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
+    except OSError as exc:  # reading a frame or writing the picture failed (a full disk)
+        print(f"skfem-granular: error: render: {exc.strerror or exc}"
+              + (f": {exc.filename}" if exc.filename else "")
+              + " (a file written before keeps its content)", file=sys.stderr)
+        return 1
     return 0
+
+
+def _check_output_file(option: str, path, suffixes) -> None:
+    """Refuse, naming ``option``, an output file of another suffix or that cannot be written
+    (the file system is left as it is)."""
+    from pathlib import Path
+
+    from .io import check_writable
+
+    if suffixes and Path(path).suffix.lower() not in suffixes:
+        raise ValueError(f"{option} = {str(path)!r}: must end in {' or '.join(suffixes)}")
+    try:
+        check_writable(Path(path), create=False)
+    except ValueError as exc:
+        raise ValueError(f"{option} = {str(path)!r}: must be a file that can be written; "
+                         f"{exc}") from None
 
 
 def _study(args) -> int:
@@ -406,12 +469,11 @@ def _study(args) -> int:
 
     out = args.out or f"out/study_{args.study.replace('-', '_')}{'_smoke' if args.smoke else ''}"
     try:
-        if args.workers < 1:
-            raise ValueError(f"--workers = {args.workers}: must be an integer >= 1")
+        in_range("--workers", args.workers, 1, MAX_WORKERS, integer=True)
         require_matplotlib()  # before any run and before the output folder is made
         _check_out("--out", out)
         res = studies.run_study(args.study, out, smoke=args.smoke, workers=args.workers,
-                                log=lambda m: print(m, flush=True))
+                                overwrite=args.overwrite, log=lambda m: print(m, flush=True))
     except (ValueError, OSError, ImportError) as exc:  # ImportError: matplotlib (plot extra)
         print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2

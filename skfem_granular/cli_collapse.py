@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import sys
 
+from ._validate import MAX_SEED, MAX_WORKERS, in_range
+
 __all__ = ["add_parser", "run"]
 
 #: exit codes of a study stopped by a signal (128 + its number, as for a run)
@@ -55,12 +57,11 @@ def run(args) -> int:
     tau = args.tau if args.tau is not None else (20.0 if args.to_rest else 8.0)
     client = None
     try:
+        _check_numbers(args, tau)
         runs = plan_collapse(args.n, states=args.states, media=args.media, cores=args.cores,
                              seeds=args.seeds, aspect=args.aspect, t_end_tau=tau,
                              to_rest=args.to_rest, stop_ratio=args.stop_ratio,
                              t_min_tau=args.t_min, checkpoint_every=args.checkpoint_every)
-        if args.workers < 1:
-            raise ValueError(f"--workers = {args.workers}: must be an integer >= 1")
         if args.scheduler:
             client = _client(args.scheduler)
         study = run_collapse_study(runs, args.out, workers=args.workers,
@@ -86,6 +87,30 @@ def run(args) -> int:
     if study.stopped:
         return SIGNAL_EXIT.get(study.stopped_by or "", 1)
     return 0
+
+
+#: Longest run, in tau_c (the bundled runs go to 20).
+MAX_TAU = 1000.0
+
+
+def _check_numbers(args, tau: float) -> None:
+    """Every number of the command line in its range (one line naming the option)."""
+    from .scene.parse import MAX_PARTICLES
+
+    in_range("n", args.n, 2, MAX_PARTICLES, integer=True)
+    for core in args.cores:
+        in_range("--cores", core, 0, 1, open_lo=True)
+    for seed in args.seeds:
+        in_range("--seeds", seed, 0, MAX_SEED, integer=True)
+    in_range("--aspect", args.aspect, 0.05, 20)
+    in_range("--tau", tau, 0, MAX_TAU, open_lo=True)
+    in_range("--stop-ratio", args.stop_ratio, 0, 1, open_lo=True, open_hi=True)
+    if args.to_rest:  # the earliest rest, before the latest end
+        in_range("--t-min", args.t_min, 0, tau, open_hi=True)
+    else:
+        in_range("--t-min", args.t_min, 0, MAX_TAU)
+    in_range("--checkpoint-every", args.checkpoint_every, 1, integer=True)
+    in_range("--workers", args.workers, 1, MAX_WORKERS, integer=True)
 
 
 def _client(address: str):

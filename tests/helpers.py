@@ -3,6 +3,7 @@
 The fluid tests must not depend on the ``meshing`` package (they test the
 fluid core alone), so the few meshes they need are made here: an annulus
 between two regular polygons, a rectangle with an optional polygonal hole.
+:func:`fail_midway` makes a library's writer fail halfway through a file.
 """
 
 from __future__ import annotations
@@ -83,3 +84,30 @@ def column_packing(state: str = "dense"):
     from skfem_granular.packing import prepare_column
 
     return prepare_column(30, 0.8, state, seed=3, E=2e5, margin=1.0)
+
+
+def fail_midway(monkeypatch, owner, name: str, where, data: bytes = b"partial bytes") -> list:
+    """Make ``owner.name`` write ``data`` to the file ``where(*args)`` names, then fail as on a
+    full disk (``OSError`` ENOSPC). Returns the files it wrote to (one per call)."""
+    import errno
+    import os
+    from pathlib import Path
+
+    written = []
+
+    def failing(*args, **kwargs):
+        path = Path(where(*args))
+        with open(path, "wb") as fh:
+            fh.write(data)
+        written.append(path)
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(owner, name, failing)
+    return written
+
+
+def partial_names(directory) -> list[str]:
+    """The names in ``directory`` of temporary files an atomic writer leaves behind."""
+    from pathlib import Path
+
+    return sorted(p.name for p in Path(directory).iterdir() if p.name.startswith(".partial-"))

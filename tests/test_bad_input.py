@@ -230,6 +230,10 @@ CLI = [
       "--max-memory"]),
     ("cli-max-memory-lower", scene(), ["--max-memory", "0.001"],
      ["unknowns would need about", "more than max_memory = 0.001 GB"]),
+    ("cli-max-memory-negative", scene(), ["--max-memory", "-1"],
+     ["--max-memory = -1.0", "must be a finite number in [0.001, 1e+06]"]),
+    ("cli-max-memory-huge", scene(), ["--max-memory", "1e300"],
+     ["--max-memory = 1e+300", "must be a finite number in [0.001, 1e+06]"]),
     ("too-many-particles",
      scene(time=TIME + "[grid]\nnx = 100\nny = 100\nradius = 0.5e-3\n"
            "origin = [1e-3, 1e-3]\n"),
@@ -280,6 +284,119 @@ def test_cli_bad_input_one_line(tmp_path, capsys, text, args, expected):
     for part in expected:
         assert fill(part) in lines[0]
     assert "Traceback" not in cap.err and cap.out == ""
+
+
+# The other commands: (id, command line, expected substrings); {TMP} is an empty folder
+# (not a run's), {FILE} a regular file in it, {RUN} a folder holding a simulation run's
+# output. Refused before anything is read or written.
+COMMANDS = [
+    ("render-fps-tiny", ["render", "{TMP}", "--animation", "{TMP}/a.gif", "--fps", "1e-300"],
+     ["--fps = 1e-300", "must be a finite number in [0.1, 100]"]),
+    ("render-fps-zero", ["render", "{TMP}", "--animation", "{TMP}/a.gif", "--fps", "0"],
+     ["--fps = 0.0", "must be a finite number in [0.1, 100]"]),
+    ("render-fps-above-100", ["render", "{TMP}", "--animation", "{TMP}/a.gif", "--fps", "120"],
+     ["--fps = 120.0", "must be a finite number in [0.1, 100]"]),
+    ("render-fps-huge", ["render", "{TMP}", "--animation", "{TMP}/a.gif", "--fps", "1e300"],
+     ["--fps = 1e+300", "must be a finite number in [0.1, 100]"]),
+    ("render-fps-inf", ["render", "{TMP}", "--animation", "{TMP}/a.gif", "--fps", "inf"],
+     ["--fps = inf", "must be a finite number in [0.1, 100]"]),
+    ("render-fps-nan", ["render", "{TMP}", "--animation", "{TMP}/a.gif", "--fps", "nan"],
+     ["--fps = nan", "must be a finite number in [0.1, 100]"]),
+    ("render-every-zero", ["render", "{TMP}", "--animation", "{TMP}/a.gif", "--every", "0"],
+     ["--every = 0", "must be an integer >= 1"]),
+    ("render-png-suffix", ["render", "{TMP}", "--png", "{TMP}/a.jpg"],
+     ["--png = '{TMP}/a.jpg'", "must end in .png"]),
+    ("render-png-under-file", ["render", "{TMP}", "--png", "{FILE}/a.png"],
+     ["--png = '{FILE}/a.png'", "must be a file that can be written", "is not a directory"]),
+    ("render-png-is-directory", ["render", "{TMP}", "--png", "{TMP}/d.png"],
+     ["--png = '{TMP}/d.png'", "must be a file that can be written", "is a directory"]),
+    ("render-animation-suffix", ["render", "{TMP}", "--animation", "{TMP}/a.avi"],
+     ["--animation = '{TMP}/a.avi'", "must end in .gif or .mp4"]),
+    ("render-animation-under-file", ["render", "{TMP}", "--animation", "{FILE}/sub/a.gif"],
+     ["--animation = '{FILE}/sub/a.gif'", "must be a file that can be written",
+      "is not a directory"]),
+    ("study-workers-zero", ["study", "faxen", "--out", "{TMP}/s", "--workers", "0"],
+     ["--workers = 0", "must be an integer in [1, 1024]"]),
+    ("study-workers-huge", ["study", "faxen", "--out", "{TMP}/s", "--workers", "100000"],
+     ["--workers = 100000", "must be an integer in [1, 1024]"]),
+    ("study-out-holds-a-run", ["study", "faxen", "--out", "{RUN}"],
+     ["output folder '{RUN}'", "holds a simulation run's output (history.csv, summary.json)",
+      "a study needs a folder of its own"]),
+    ("study-out-holds-a-run-overwrite", ["study", "faxen", "--out", "{RUN}", "--overwrite"],
+     ["output folder '{RUN}'", "holds a simulation run's output (history.csv, summary.json)",
+      "a study needs a folder of its own"]),
+    ("pack-n-zero", ["pack", "0", "--out", "{TMP}/p.npz"], ["n = 0", "integer in [1, 10000]"]),
+    ("pack-n-huge", ["pack", "100000000", "--out", "{TMP}/p.npz"],
+     ["n = 100000000", "integer in [1, 10000]"]),
+    ("pack-aspect-nan", ["pack", "10", "--out", "{TMP}/p.npz", "--aspect", "nan"],
+     ["--aspect = nan", "finite number in [0.05, 20]"]),
+    ("pack-seed-negative", ["pack", "10", "--out", "{TMP}/p.npz", "--seed", "-1"],
+     ["--seed = -1", "integer in [0, 4294967295]"]),
+    ("pack-size-ratio-inf", ["pack", "10", "--out", "{TMP}/p.npz", "--size-ratio", "inf"],
+     ["--size-ratio = inf", "finite number in [1, 4]"]),
+    ("pack-d-mean-huge", ["pack", "10", "--out", "{TMP}/p.npz", "--d-mean", "1e300"],
+     ["--d-mean = 1e+300", "finite number in [1e-05, 0.1]"]),
+    ("pack-d-mean-negative", ["pack", "10", "--out", "{TMP}/p.npz", "--d-mean", "-1"],
+     ["--d-mean = -1.0", "finite number in [1e-05, 0.1]"]),
+    ("pack-margin-negative", ["pack", "10", "--out", "{TMP}/p.npz", "--margin", "-1"],
+     ["--margin = -1.0", "finite number in [0, 20]"]),
+    ("pack-out-under-file", ["pack", "10", "--out", "{FILE}/p.npz"],
+     ["--out = '{FILE}/p.npz'", "must be a file that can be written", "is not a directory"]),
+    ("pack-scene-under-file", ["pack", "10", "--out", "{TMP}/p.npz", "--scene", "{FILE}/s.toml"],
+     ["--scene = '{FILE}/s.toml'", "must be a file that can be written", "is not a directory"]),
+    ("collapse-n-one", ["collapse", "1", "--out", "{TMP}/c"], ["n = 1", "integer in [2, 10000]"]),
+    ("collapse-n-huge", ["collapse", "100000000", "--out", "{TMP}/c"],
+     ["n = 100000000", "integer in [2, 10000]"]),
+    ("collapse-cores-zero", ["collapse", "10", "--out", "{TMP}/c", "--cores", "0"],
+     ["--cores = 0.0", "finite number in (0, 1]"]),
+    ("collapse-seeds-negative", ["collapse", "10", "--out", "{TMP}/c", "--seeds", "0", "-1"],
+     ["--seeds = -1", "integer in [0, 4294967295]"]),
+    ("collapse-aspect-huge", ["collapse", "10", "--out", "{TMP}/c", "--aspect", "1e300"],
+     ["--aspect = 1e+300", "finite number in [0.05, 20]"]),
+    ("collapse-tau-zero", ["collapse", "10", "--out", "{TMP}/c", "--tau", "0"],
+     ["--tau = 0.0", "finite number in (0, 1000]"]),
+    ("collapse-tau-huge", ["collapse", "10", "--out", "{TMP}/c", "--tau", "1e300"],
+     ["--tau = 1e+300", "finite number in (0, 1000]"]),
+    ("collapse-stop-ratio-one",
+     ["collapse", "10", "--out", "{TMP}/c", "--to-rest", "--stop-ratio", "1"],
+     ["--stop-ratio = 1.0", "finite number in (0, 1)"]),
+    ("collapse-t-min-after-end", ["collapse", "10", "--out", "{TMP}/c", "--to-rest",
+                                  "--tau", "10", "--t-min", "12"],
+     ["--t-min = 12.0", "finite number in [0, 10)"]),
+    ("collapse-checkpoint-every-zero",
+     ["collapse", "10", "--out", "{TMP}/c", "--checkpoint-every", "0"],
+     ["--checkpoint-every = 0", "integer >= 1"]),
+    ("collapse-workers-huge", ["collapse", "10", "--out", "{TMP}/c", "--workers", "100000"],
+     ["--workers = 100000", "integer in [1, 1024]"]),
+]
+
+
+@pytest.mark.parametrize("argv,expected", [c[1:] for c in COMMANDS], ids=[c[0] for c in COMMANDS])
+def test_other_commands_bad_input_one_line(tmp_path, capsys, argv, expected):
+    """Exit status 2, one line, nothing printed on stdout and nothing written."""
+    regular = tmp_path / "a_regular_file"
+    regular.write_text("not a directory\n")
+    (tmp_path / "d.png").mkdir()
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "history.csv").write_text("t,dt\n")
+    (run / "summary.json").write_text("{}")
+
+    def fill(s):
+        return (s.replace("{FILE}", str(regular)).replace("{RUN}", str(run))
+                .replace("{TMP}", str(tmp_path)))
+
+    before = sorted(tmp_path.rglob("*"))
+    code = main([fill(a) for a in argv])
+    cap = capsys.readouterr()
+    lines = cap.err.splitlines()
+    assert code == 2, cap
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("skfem-granular: error: ")
+    for part in expected:
+        assert fill(part) in lines[0], lines[0]
+    assert "Traceback" not in cap.err and cap.out == ""
+    assert sorted(tmp_path.rglob("*")) == before
 
 
 # ---------------------------------------------------------------- library calls
@@ -766,12 +883,20 @@ def _what(text, args) -> str:
 
 
 def table_markdown() -> str:
-    """The docs page: one table of the command line's rows, one of the library's."""
+    """The docs page: tables of the command line's rows (run, the other commands) and one of
+    the library's."""
     lines = [DOC_HEAD, "## Command line (exit status 2)", "",
              "| case | given | the one line contains |", "|---|---|---|"]
     for case, text, args, expected in CLI:
         parts = "; ".join(f"`{_cell(e)}`" for e in expected)
         lines.append(f"| {case} | {_cell(_what(text, args))} | {parts} |")
+    lines += ["", "## Other commands (exit status 2)", "",
+              "Refused before anything is read or written (`{TMP}`: a folder, `{FILE}`: a "
+              "regular file, `{RUN}`: a folder holding a simulation run's output).", "",
+              "| case | command | the one line contains |", "|---|---|---|"]
+    for case, argv, expected in COMMANDS:
+        parts = "; ".join(f"`{_cell(e)}`" for e in expected)
+        lines.append(f"| {case} | `{_cell(' '.join(argv))}` | {parts} |")
     lines += ["", "## Library calls and checkpoints (`ValueError`)", "",
               "| case | the message contains |", "|---|---|"]
     for row in LIB:

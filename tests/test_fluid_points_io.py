@@ -390,3 +390,24 @@ def test_unwritable_output_paths_raise_naming_the_path(rotation, tmp_path):
     with pytest.raises(ValueError, match="is a directory"):
         flow.save(tmp_path / "dir.vtu")
     assert blocker.read_text() == "not a directory"
+
+
+def test_failed_vtu_write_keeps_the_earlier_frame(rotation, tmp_path, monkeypatch):
+    """meshio writing half a VTU, then failing (a full disk): the earlier file of that name
+    stays byte for byte and no temporary file is left; the write went to one."""
+    from helpers import fail_midway, partial_names
+
+    _, flow = rotation
+    path = tmp_path / "flow_00000.vtu"
+    flow.save(path)
+    before = _digest(path)
+    written = fail_midway(monkeypatch, meshio, "write", lambda filename, *a: filename,
+                          data=b"<VTKFile partial")
+    for save in (lambda: flow.save(path),
+                 lambda: write_vtu(path, np.zeros((2, 3)), {"triangle": np.array([[0, 1, 2]])})):
+        with pytest.raises(OSError, match="No space left"):
+            save()
+        assert _digest(path) == before
+        assert partial_names(tmp_path) == []
+    assert [p.parent for p in written] == [tmp_path] * 2
+    assert all(p.name.startswith(".partial-flow_00000-") for p in written)

@@ -9,6 +9,12 @@ no file of the earlier run changed (unless ``--overwrite`` was given):
 - a live run's lock refuses a second run (one line naming the pid); a lock
   whose process is gone is taken over; two runs started into one folder at
   once: one runs, the other is refused;
+- the lock file is readable or absent whatever system call of its creation a
+  kill comes before (a child process exits there, for every one of them, into
+  an empty folder, over a dead process's lock and over an empty lock): the next
+  run takes the folder over; a process stopped there while another takes the
+  folder: exactly one holds it, the other is refused naming its pid; an empty
+  or garbled lock is taken over;
 - two SIGTERMs (or SIGINTs) 50 ms apart: exit status 143 (130), the history,
   the summary and the checkpoint written, and the run resumes bit for bit;
   SIGTERM/SIGINT during start-up: one line, 143/130, no traceback;
@@ -408,3 +414,219 @@ def test_a_small_file_system_fills_up(tmp_path, capsys):
         assert (out / "history.csv").read_bytes() == (ref / "history.csv").read_bytes()
     finally:
         subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+# ---------------------------------------------------------------- the lock file itself
+_KILL_DRIVER = r'''
+import json, os, select, socket, sys
+from pathlib import Path
+
+from skfem_granular.simulation import folder
+from skfem_granular.simulation.folder import LOCK_NAME, FolderInUseError, FolderLock
+
+base, scenario, variant = Path(sys.argv[1]), sys.argv[2], sys.argv[3]
+CALLS = {"open", "write", "close", "fstat", "link", "unlink", "rename", "listdir", "kill"}
+real_os = os
+
+
+class Proxy:
+    """``os`` for the lock's code: ``action`` runs before its ``at``-th system call."""
+
+    def __init__(self, at, action):
+        self.at, self.action, self.n = at, action, 0
+
+    def __getattr__(self, name):
+        value = getattr(real_os, name)
+        if name not in CALLS:
+            return value
+
+        def call(*a, **k):
+            self.n += 1
+            if self.n == self.at:
+                self.action()
+            return value(*a, **k)
+        return call
+
+
+def dead_pid():
+    pid = os.fork()
+    if pid == 0:
+        os._exit(0)
+    os.waitpid(pid, 0)
+    return pid
+
+
+def lock_bytes(d):
+    try:
+        return (d / LOCK_NAME).read_bytes().decode("latin-1")
+    except FileNotFoundError:
+        return None
+
+
+for k in range(1, 200):
+    d = base / f"{scenario}-{variant}-{k}"
+    d.mkdir()
+    if scenario == "stale":
+        (d / LOCK_NAME).write_text(json.dumps({"pid": dead_pid(), "host": socket.gethostname()}))
+    elif scenario == "garbled":
+        (d / LOCK_NAME).write_bytes(b"")  # an earlier version, killed before writing it
+    rec = {"k": k, "before": lock_bytes(d), "driver": os.getpid()}
+    r1, w1 = os.pipe()
+    r2, w2 = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        code = 1
+        try:
+            os.close(r1)
+            os.close(w2)
+            if variant == "kill":
+                def action():
+                    os._exit(137)
+            else:
+                def action():  # stopped here until the driver has tried the folder
+                    os.write(w1, b"p")
+                    os.read(r2, 1)
+            folder.os = Proxy(k, action)
+            try:
+                FolderLock(d).acquire()
+                code = 0
+            except FolderInUseError:
+                code = 3
+        finally:
+            os._exit(code)
+    os.close(w1)
+    os.close(r2)
+    rec["child_pid"] = pid
+    if variant == "freeze":
+        select.select([r1], [], [], 60)
+        rec["paused"] = os.read(r1, 1) == b"p"
+        mine = FolderLock(d, "driver")
+        try:
+            mine.acquire()
+            rec["driver_lock"] = "held"
+        except FolderInUseError as exc:
+            rec["driver_lock"] = str(exc)
+        if rec["paused"]:
+            os.write(w2, b"g")
+    rec["child"] = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+    os.close(r1)
+    os.close(w2)
+    if rec.get("driver_lock") == "held":
+        rec["lock_while_driver_holds"] = lock_bytes(d)
+        mine.release()
+    rec["lock"] = lock_bytes(d)
+    nxt = FolderLock(d, "next")
+    try:
+        nxt.acquire()
+        rec["next"] = "held"
+        nxt.release()
+    except FolderInUseError as exc:
+        rec["next"] = str(exc)
+    rec["left"] = sorted(os.listdir(d))
+    print(json.dumps(rec), flush=True)
+    if (variant == "kill" and rec["child"] == 0) or (variant == "freeze" and not rec["paused"]):
+        break  # the acquisition ended before its k-th system call: every point was tried
+'''
+
+
+def _pid_in(text):
+    return None if text is None else json.loads(text)["pid"]
+
+
+@pytest.mark.parametrize("scenario", ["fresh", "stale", "garbled"])
+def test_a_kill_between_any_two_system_calls_of_the_lock_leaves_it_readable_or_absent(
+        tmp_path, scenario):
+    """A child process taking the lock (into an empty folder, over a dead process's lock,
+    over an empty lock) is killed (os._exit) before its k-th system call, for every k: the
+    lock is then absent, the child's (readable JSON) or the one that was there before, and
+    the next run takes the folder and leaves nothing behind (no lock, no temporary)."""
+    out = subprocess.run([sys.executable, "-c", _KILL_DRIVER, str(tmp_path), scenario, "kill"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    recs = [json.loads(line) for line in out.stdout.splitlines()]
+    assert recs[-1]["child"] == 0 and len(recs) >= {"fresh": 7, "stale": 12, "garbled": 10}[
+        scenario], recs  # every point up to a completed acquisition
+    for r in recs:
+        assert r["child"] in (137, 0), r
+        assert r["lock"] in (None, r["before"]) or _pid_in(r["lock"]) == r["child_pid"], r
+        assert r["next"] == "held" and r["left"] == [], r
+
+
+@pytest.mark.parametrize("scenario", ["fresh", "stale", "garbled"])
+def test_a_second_run_while_the_first_is_stopped_at_any_system_call(tmp_path, scenario):
+    """The child is stopped (alive) before its k-th system call while another process takes
+    the folder, then continues: exactly one of them holds the lock; the other is refused
+    with one line naming the holder's pid."""
+    out = subprocess.run([sys.executable, "-c", _KILL_DRIVER, str(tmp_path), scenario,
+                          "freeze"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    recs = [json.loads(line) for line in out.stdout.splitlines()]
+    assert len(recs) >= 7 and not recs[-1]["paused"], recs
+    outcomes = set()
+    for r in recs[:-1]:
+        if r["driver_lock"] == "held":  # the child's lock was not in place yet
+            assert r["child"] == 3, r  # refused when it went on
+            assert _pid_in(r["lock_while_driver_holds"]) == r["driver"], r
+            assert r["lock"] is None, r
+        else:
+            assert f"in use by a running simulation (pid {r['child_pid']} on " in \
+                r["driver_lock"], r
+            assert "\n" not in r["driver_lock"]
+            assert r["child"] == 0 and _pid_in(r["lock"]) == r["child_pid"], r
+        outcomes.add(r["driver_lock"] == "held")
+        assert r["next"] == "held" and r["left"] == [], r
+    assert outcomes == {True, False}  # both orders were met
+
+
+@pytest.mark.parametrize("content", [b"", b"{", b"null", b"[1, 2]", b'{"pid": "7"}',
+                                     b'{"pid": 7}', b"\x00\xff\xfe garbage\n"])
+def test_an_unreadable_lock_is_taken_over(tmp_path, content):
+    from skfem_granular.simulation.folder import OutputFolder
+
+    (tmp_path / LOCK_NAME).write_bytes(content)
+    with OutputFolder(tmp_path) as f:
+        held = json.loads((tmp_path / LOCK_NAME).read_text())
+        assert f.held and held["pid"] == os.getpid() and held["host"] == socket.gethostname()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_empty_lock_left_by_a_kill_is_taken_over_by_the_next_run(tmp_path, capsys):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / LOCK_NAME).write_bytes(b"")
+    assert main(["run", *SHORT, "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert not (out / LOCK_NAME).exists() and (out / "summary.json").exists()
+
+
+def test_a_lock_with_this_process_id_from_an_earlier_process_is_taken_over(tmp_path):
+    """A restarted container can give a run the process id of the killed one: a lock with
+    this process's id but not one of its locks is stale; one of its own is not."""
+    from skfem_granular.simulation.folder import FolderLock
+
+    _write_lock(tmp_path, os.getpid())
+    first = FolderLock(tmp_path)
+    first.acquire()
+    with pytest.raises(FolderInUseError, match=f"pid {os.getpid()} on "):
+        FolderLock(tmp_path).acquire()  # this process's own live lock
+    first.release()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_lock_without_hard_links(tmp_path, monkeypatch):
+    """A file system that cannot make hard links: the lock is created and written in one
+    call instead, and is readable and released as usual."""
+    from skfem_granular.simulation import folder
+
+    def no_links(*a, **k):
+        raise OSError(errno.EPERM, os.strerror(errno.EPERM))
+
+    monkeypatch.setattr(folder.os, "link", no_links)
+    lock = folder.FolderLock(tmp_path)
+    lock.acquire()
+    assert json.loads((tmp_path / LOCK_NAME).read_text())["pid"] == os.getpid()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [LOCK_NAME]
+    with pytest.raises(FolderInUseError):
+        folder.FolderLock(tmp_path).acquire()
+    lock.release()
+    assert list(tmp_path.iterdir()) == []

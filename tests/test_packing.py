@@ -136,3 +136,20 @@ def test_cli_pack_small_column_measures_half_a_grain_from_the_edges(tmp_path, ca
     assert main(["pack", "30", "--out", str(tmp_path / "d.npz"), "--margin", "2"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "packing.margin = 2.0" in err
+
+
+def test_failed_save_keeps_the_earlier_packing(pair, tmp_path, monkeypatch):
+    """numpy's savez writing half a file, then failing: the earlier packing file stays byte
+    for byte and loads as before, no temporary file is left."""
+    from helpers import fail_midway, partial_names
+
+    path = tmp_path / "column.npz"
+    assert pair["dense"].save(path) == path
+    before = path.read_bytes()
+    written = fail_midway(monkeypatch, np, "savez", lambda file, *a: file, data=b"PK\x03\x04")
+    with pytest.raises(OSError, match="No space left"):
+        pair["loose"].save(tmp_path / "column")  # ".npz" added, as numpy does
+    assert written[0].parent == tmp_path and written[0].suffix == ".npz"
+    assert path.read_bytes() == before
+    assert partial_names(tmp_path) == []
+    assert load_packing(path).solid_fraction == pair["dense"].solid_fraction

@@ -173,3 +173,138 @@ def test_bad_files(run_dir, tmp_path):
         viz.render_frame(run_dir / "flow_00000.vtu", path_png=tmp_path / "a.jpg")
     with pytest.raises(ValueError, match="box"):
         viz.render_frame(run_dir / "flow_00000.vtu", box=(1, 1, 0, 2))
+
+
+# ---------------------------------------------------------------- files written whole or not at all
+def _failing_save(monkeypatch, targets):
+    """Pillow's save writes a few bytes to its file, then fails as on a full disk."""
+    import errno
+    import os
+
+    from PIL import Image
+
+    def save(self, fp, *args, **kwargs):
+        targets.append(Path(fp))
+        with open(fp, "wb") as fh:
+            fh.write(b"\x89PNG half a picture")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(fp))
+
+    monkeypatch.setattr(Image.Image, "save", save)
+
+
+def _writers(run_dir, path):
+    small = {"window_size": (200, 300)}
+    if path.suffix == ".png":
+        return (lambda: viz.render_frame(run_dir / "flow_00002.vtu", None, path, **small),
+                lambda: viz.render_frame(run_dir / "flow_00002.vtu", None, path,
+                                         field="pressure", **small))
+    return (lambda: viz.render_series(run_dir, path, every=2, **small),
+            lambda: viz.render_series(run_dir, path, every=2, field="pressure", **small))
+
+
+@needs_pyvista
+@pytest.mark.parametrize("name", ["pic.png", "run.gif"])
+def test_failed_write_keeps_the_earlier_file(run_dir, tmp_path, monkeypatch, name):
+    """A PNG or GIF whose write fails midway (partial bytes, then ENOSPC) leaves the earlier
+    file byte for byte and no temporary file; the failed write went to a temporary name."""
+    path = tmp_path / name
+    first, second = _writers(run_dir, path)
+    first()
+    before = path.read_bytes()
+    targets = []
+    _failing_save(monkeypatch, targets)
+    with pytest.raises(OSError, match="No space left on device"):
+        second()  # another field: a write that got through would change the bytes
+    assert len(targets) == 1 and targets[0].parent == tmp_path
+    assert targets[0].name.startswith(".partial-") and targets[0].suffix == path.suffix
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+    monkeypatch.undo()
+    second()
+    assert path.read_bytes() != before  # the same call, not failing, replaces it
+
+
+def _fake_imageio(monkeypatch, fail_at=None):
+    """imageio.v2 (and imageio_ffmpeg) stand-ins whose MP4 writer writes ``frame;`` per frame
+    and fails as on a full disk at frame ``fail_at``."""
+    import errno
+    import os
+    import sys
+    import types
+
+    log = {"frames": 0, "closed": 0, "paths": [], "fps": []}
+
+    class Writer:
+        def __init__(self, path, fps, macro_block_size):
+            log["paths"].append(Path(path))
+            log["fps"].append(fps)
+            self.fh = open(path, "wb")  # noqa: SIM115 (closed in close)
+
+        def append_data(self, image):
+            assert image.shape[0] % 2 == 0 and image.shape[1] % 2 == 0  # padded for H.264
+            self.fh.write(b"frame;")
+            log["frames"] += 1
+            if log["frames"] == fail_at:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        def close(self):
+            self.fh.close()
+            log["closed"] += 1
+
+    v2 = types.ModuleType("imageio.v2")
+    v2.get_writer = Writer
+    pkg = types.ModuleType("imageio")
+    pkg.v2 = v2
+    for name, module in (("imageio", pkg), ("imageio.v2", v2),
+                         ("imageio_ffmpeg", types.ModuleType("imageio_ffmpeg"))):
+        monkeypatch.setitem(sys.modules, name, module)
+    return log
+
+
+@needs_pyvista
+def test_failed_mp4_keeps_the_earlier_file(run_dir, tmp_path, monkeypatch):
+    """The MP4 is streamed to a temporary file: the writer failing at the second frame leaves
+    the earlier MP4 byte for byte, the writer closed and no temporary file."""
+    path = tmp_path / "run.mp4"
+    log = _fake_imageio(monkeypatch)
+    viz.render_series(run_dir, path, fps=4, window_size=(201, 301))
+    assert path.read_bytes() == b"frame;" * 3 and log["closed"] == 1 and log["fps"] == [4.0]
+    assert log["paths"][0].parent == tmp_path and log["paths"][0].name.startswith(".partial-")
+    path.write_bytes(b"the earlier MP4")
+    log = _fake_imageio(monkeypatch, fail_at=2)
+    with pytest.raises(OSError, match="No space left on device"):
+        viz.render_series(run_dir, path, window_size=(201, 301))
+    assert (log["frames"], log["closed"]) == (2, 1)
+    assert path.read_bytes() == b"the earlier MP4"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.mp4"]
+
+
+@pytest.mark.parametrize("fps", [1e-300, 0.0, 0.09, 100.5, 1e300, float("inf"), float("nan"),
+                                 -10.0, True, "fast"])
+def test_fps_out_of_range_is_refused_before_anything(run_dir, tmp_path, monkeypatch, fps):
+    def no_rendering():
+        raise AssertionError("rendering started")
+
+    monkeypatch.setattr("skfem_granular.viz.animation.require_pyvista", no_rendering)
+    path = tmp_path / "run.gif"
+    path.write_bytes(b"GIF89a the earlier animation")
+    with pytest.raises(ValueError) as info:
+        viz.render_series(run_dir, path, fps=fps)
+    assert str(info.value) == f"fps = {fps!r}: must be a finite number in [0.1, 100]"
+    assert path.read_bytes() == b"GIF89a the earlier animation"
+    assert viz.check_fps(0.1) == 0.1 and viz.check_fps(100) == 100.0
+
+
+def test_output_under_a_file_is_refused_before_rendering(run_dir, tmp_path, monkeypatch):
+    def no_rendering():
+        raise AssertionError("rendering started")
+
+    monkeypatch.setattr("skfem_granular.viz.animation.require_pyvista", no_rendering)
+    monkeypatch.setattr("skfem_granular.viz.frames.require_pyvista", no_rendering)
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    with pytest.raises(ValueError, match=r"'.*a_file' is not a directory"):
+        viz.render_frame(run_dir / "flow_00002.vtu", None, blocker / "pic.png")
+    with pytest.raises(ValueError, match=r"'.*a_file' is not a directory"):
+        viz.render_series(run_dir, blocker / "run.gif")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]

@@ -6,12 +6,14 @@ Tiny grids (a few seconds of runs); the full grids are `skfem-granular study ...
 import csv
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from skfem_granular import studies
 from skfem_granular.cli import main
+from skfem_granular.simulation.folder import FolderInUseError
 from skfem_granular.studies import Run
 
 FAXEN_RUNS = [Run("graded", "graded", n_sides=n) for n in (12, 24, 48)] + [
@@ -199,3 +201,191 @@ def test_cli_smoke_study_writes_table_and_figures(tmp_path, capsys):
     assert float(fine["wall_time"]) > float(coarse["wall_time"])
     assert main(["study", "faxen", "--smoke", "--out", str(out)]) == 0  # resumed: nothing to do
     assert "0 runs computed, 18 reused" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- files written whole or not at all
+def test_failed_table_write_keeps_the_earlier_tables(faxen, tmp_path, monkeypatch):
+    """csv's writer failing after one row, then the Markdown write failing halfway: each
+    earlier table stays byte for byte, no temporary file is left, the other table is
+    written."""
+    import csv
+    import errno
+    import os
+
+    from helpers import fail_midway, partial_names
+
+    studies.write_tables(faxen.rows, tmp_path, "faxen", False)
+    before = {n: (tmp_path / n).read_bytes() for n in ("table.csv", "table.md")}
+    fewer = faxen.rows[:2]  # a write that got through would change both files
+
+    def writerows(self, rows):
+        self.writerow(next(iter(rows)))
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    with monkeypatch.context() as m:
+        m.setattr(csv.DictWriter, "writerows", writerows)
+        with pytest.raises(OSError, match="No space left"):
+            studies.write_tables(fewer, tmp_path, "faxen", False)
+    assert {n: (tmp_path / n).read_bytes() for n in before} == before
+    assert partial_names(tmp_path) == []
+    with monkeypatch.context() as m:
+        written = fail_midway(m, Path, "write_text", lambda self, *a: self)
+        with pytest.raises(OSError, match="No space left"):
+            studies.write_tables(fewer, tmp_path, "faxen", False)
+    assert written[0].parent == tmp_path and written[0].name.startswith(".partial-table-")
+    assert (tmp_path / "table.md").read_bytes() == before["table.md"]
+    assert (tmp_path / "table.csv").read_bytes() != before["table.csv"]  # written before it
+    assert partial_names(tmp_path) == []
+    studies.write_tables(fewer, tmp_path, "faxen", False)
+    assert (tmp_path / "table.md").read_bytes() != before["table.md"]
+
+
+def test_failed_figure_write_keeps_the_earlier_figure(faxen, tmp_path, monkeypatch):
+    """matplotlib's savefig writing half a PNG, then failing: the earlier figure stays byte
+    for byte, no temporary file, the figure closed."""
+    import matplotlib.pyplot as plt
+    from helpers import fail_midway, partial_names
+    from matplotlib.figure import Figure
+
+    studies.plot_pareto(faxen.rows, tmp_path / "pareto.png")
+    before = (tmp_path / "pareto.png").read_bytes()
+    written = fail_midway(monkeypatch, Figure, "savefig", lambda self, fname, *a: fname,
+                          data=b"\x89PNG half")
+    with pytest.raises(OSError, match="No space left"):
+        studies.plot_pareto(faxen.rows[:2], tmp_path / "pareto.png", title="another")
+    assert written[0].parent == tmp_path and written[0].name.startswith(".partial-pareto-")
+    assert (tmp_path / "pareto.png").read_bytes() == before
+    assert partial_names(tmp_path) == [] and plt.get_fignums() == []
+
+
+def test_failed_record_write_leaves_no_torn_record(faxen, tmp_path, monkeypatch):
+    """A run's record whose write fails halfway: no record file (the run is recomputed on
+    the next start, not read back torn), no temporary file; an earlier record stays."""
+    from helpers import fail_midway, partial_names
+
+    from skfem_granular.studies import driver
+
+    rec = json.loads(next((faxen.out_dir / "runs").glob("*.json")).read_text())
+    (tmp_path / "old.json").write_text("the earlier record")
+    fail_midway(monkeypatch, Path, "write_text",
+                lambda self, *a: self, data=b'{"spec": {"family": ')
+    with pytest.raises(OSError, match="No space left"):
+        driver._write_json(tmp_path / "new.json", rec)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.json"]
+    with pytest.raises(OSError, match="No space left"):
+        driver._write_json(tmp_path / "old.json", rec)
+    assert (tmp_path / "old.json").read_text() == "the earlier record"
+    assert partial_names(tmp_path) == []
+
+
+# ---------------------------------------------------------------- the study's folder is its own
+def _hashes(d):
+    import hashlib
+
+    return {str(p.relative_to(d)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(Path(d).rglob("*")) if p.is_file()}
+
+
+def _only_line(capsys) -> str:
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in cap.err, cap.err
+    return lines[0]
+
+
+@pytest.fixture
+def copy_of(faxen, tmp_path):
+    """A copy of the faxen study's folder (the module's own stays as it is)."""
+    import shutil
+
+    return shutil.copytree(faxen.out_dir, tmp_path / "faxen")
+
+
+def test_study_into_a_simulation_runs_folder_is_refused(tmp_path, capsys):
+    """One line, exit status 2, also with --overwrite; nothing in the run's folder changes
+    (no study.json, no runs/)."""
+    from dataclasses import replace
+
+    from skfem_granular.scene import Scene, TimeSpec
+    from skfem_granular.simulation import Simulation
+
+    sc = replace(Scene.bundled("single_particle"), time=TimeSpec(2e-5, 1e-5), output_dir=None)
+    out = tmp_path / "run"
+    Simulation(sc, output_dir=out).run(progress=False)
+    before = _hashes(out)
+    for extra in ([], ["--overwrite"]):
+        assert main(["study", "faxen", "--smoke", "--out", str(out), *extra]) == 2
+        assert _only_line(capsys) == (
+            f"skfem-granular: error: output folder {str(out)!r}: holds a simulation run's "
+            "output (flow.pvd, flow_00000.vtu, flow_00001.vtu, ...); a study needs a folder "
+            "of its own")
+        assert _hashes(out) == before and not (out / "runs").exists()
+
+
+def test_study_into_another_studys_folder_is_refused_unless_overwrite(copy_of, capsys):
+    before = _hashes(copy_of)
+    (copy_of / "notes.txt").write_text("mine")
+    for argv in (["single-particle"], ["faxen", "--smoke"]):  # another study, another grid
+        assert main(["study", *argv, "--out", str(copy_of)]) == 2
+        assert _only_line(capsys) == (
+            f"skfem-granular: error: output folder {str(copy_of)!r}: holds the output of "
+            "another study (faxen: study.json, table.csv, table.md, ...); use --overwrite "
+            "(library: overwrite=True) to replace it, or another folder")
+    with pytest.raises(FolderInUseError, match="holds the output of another study"):
+        studies.run_study("single-particle", copy_of, runs=[])
+    assert {k: v for k, v in _hashes(copy_of).items() if k != "notes.txt"} == before
+    # replaced: the old study's files removed first (a file not a study's left alone)
+    res = studies.run_study("single-particle", copy_of, runs=[], overwrite=True)
+    assert res.rows == [] and not list((copy_of / "runs").iterdir())
+    assert sorted(p.name for p in copy_of.iterdir()) == ["notes.txt", "runs", "study.json",
+                                                         "table.csv", "table.md"]
+    assert json.loads((copy_of / "study.json").read_text())["study"] == "single-particle"
+    assert (copy_of / "notes.txt").read_text() == "mine"
+
+
+def test_same_study_continues_and_an_older_folder_is_recognised(copy_of):
+    """The same study reads its records back (nothing computed); a folder from before
+    study.json is recognised by its table's title: the same study continues it, another is
+    refused."""
+    again = studies.run_study("faxen", copy_of, runs=FAXEN_RUNS, plots=False)
+    assert again.computed == [] and len(again.rows) == len(FAXEN_RUNS)
+    (copy_of / "study.json").unlink()
+    with pytest.raises(ValueError, match=r"holds the output of another study \(faxen: "):
+        studies.run_study("single-particle", copy_of, runs=[])
+    again = studies.run_study("faxen", copy_of, runs=FAXEN_RUNS, plots=False)
+    assert again.computed == [] and json.loads((copy_of / "study.json").read_text()) == {
+        "format": "skfem-granular study", "study": "faxen", "smoke": False}
+
+
+def test_live_lock_refuses_a_second_study_and_a_run(copy_of, tmp_path, capsys):
+    """A study's folder locked by a live process: a study and a run into it are refused in
+    one line naming its pid; a run into a study's folder is refused even with --overwrite."""
+    import socket
+    import subprocess
+    import sys
+
+    from skfem_granular.simulation.folder import LOCK_NAME
+
+    before = _hashes(copy_of)
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (copy_of / LOCK_NAME).write_text(json.dumps(
+            {"pid": holder.pid, "host": socket.gethostname(), "what": "study"}))
+        assert main(["study", "faxen", "--out", str(copy_of)]) == 2
+        assert _only_line(capsys).startswith(
+            f"skfem-granular: error: output folder {str(copy_of)!r}: in use by a running "
+            f"study (pid {holder.pid} on ")
+        assert main(["run", "single-particle", "--t-end", "2e-5", "--out", str(copy_of),
+                     "--no-progress"]) == 2
+        assert f"in use by a running study (pid {holder.pid} on " in _only_line(capsys)
+    finally:
+        holder.kill()
+        holder.wait()
+    (copy_of / LOCK_NAME).unlink()
+    for extra in ([], ["--overwrite"]):
+        assert main(["run", "single-particle", "--t-end", "2e-5", "--out", str(copy_of),
+                     "--no-progress", *extra]) == 2
+        assert _only_line(capsys) == (
+            f"skfem-granular: error: output folder {str(copy_of)!r}: holds the output of the "
+            "study 'faxen' (study.json); a run needs a folder of its own")
+    assert _hashes(copy_of) == before

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io import save_figure
 from .laws import DRY_LAWS, dry_runout
 
 __all__ = ["plot_pressure_lines", "plot_runout_curves", "plot_runout_law"]
@@ -33,8 +34,10 @@ def plot_runout_curves(curves, path=None, ax=None, styles=None):
     ax.grid(alpha=0.3)
     if fig is not None and path is not None:
         fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
+        try:
+            save_figure(fig, path, dpi=120)
+        finally:
+            plt.close(fig)
     return ax
 
 
@@ -61,8 +64,10 @@ def plot_runout_law(aspect, runout, spread=None, path=None, label="this DEM"):
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
+        try:
+            save_figure(fig, path, dpi=120)
+        finally:
+            plt.close(fig)
     return fig
 
 
@@ -80,6 +85,8 @@ def plot_pressure_lines(x, lines, path=None, scale=1.0, ylabel="excess pore pres
     ax.legend(fontsize=8)
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
+        try:
+            save_figure(fig, path, dpi=120)
+        finally:
+            plt.close(fig)
     return fig

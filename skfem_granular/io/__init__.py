@@ -8,11 +8,21 @@ JSON header (checkpoints), and reads them back strictly, without pickle.
 """
 
 from . import plain
-from .files import PARTIAL_PREFIX, atomic_write, check_writable, partial_files, remove_partial_files
+from .files import (
+    PARTIAL_PREFIX,
+    atomic_path,
+    atomic_write,
+    check_writable,
+    partial_files,
+    remove_partial_files,
+    save_figure,
+    write_text,
+)
 from .pvd import PVDSeries, read_pvd
 from .table import CSVLog, History, Table, read_csv
 from .vtu import write_vtu
 
-__all__ = ["PARTIAL_PREFIX", "CSVLog", "History", "PVDSeries", "Table", "atomic_write",
+__all__ = ["PARTIAL_PREFIX", "CSVLog", "History", "PVDSeries", "Table", "atomic_path",
+           "atomic_write",
            "check_writable", "partial_files", "plain", "read_csv", "read_pvd",
-           "remove_partial_files", "write_vtu"]
+           "remove_partial_files", "save_figure", "write_text", "write_vtu"]

@@ -9,25 +9,43 @@ ones, and :func:`remove_partial_files` (called when a run resumes) deletes it.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import tempfile
 from pathlib import Path
 
-#: Prefix of the temporary files :func:`atomic_write` renames onto their final names.
+#: Prefix of the temporary files :func:`atomic_path` renames onto their final names.
 PARTIAL_PREFIX = ".partial-"
 
 
-def check_writable(path: Path) -> None:
+def check_writable(path, *, create: bool = True) -> None:
+    """Refuse (``ValueError``, one line) a file path that cannot be written.
+
+    Refuses a path that is a directory, whose parent (or nearest existing
+    ancestor) is not a directory, or is not writable.
+
+    Parameters
+    ----------
+    path : str or Path
+    create : bool
+        Create the missing parent directories; ``False`` leaves the file
+        system as it is (a check before any work).
+    """
+    path = Path(path)
     parent = path.parent if str(path.parent) else Path(".")
     if path.is_dir():
         raise ValueError(f"output path {str(path)!r}: is a directory")
     if not parent.exists():
-        try:
-            parent.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ValueError(f"output path {str(path)!r}: cannot create directory "
-                             f"({exc.strerror})") from None
+        if not create:
+            while not parent.exists() and parent != parent.parent:
+                parent = parent.parent
+        else:
+            try:
+                parent.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise ValueError(f"output path {str(path)!r}: cannot create directory "
+                                 f"({exc.strerror})") from None
     if not parent.is_dir():
         raise ValueError(f"output path {str(path)!r}: {str(parent)!r} is not a directory")
     if not os.access(parent, os.W_OK):
@@ -42,19 +60,34 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write(path, write, *, fsync: bool = False) -> Path:
-    """Call ``write(tmp_path)`` and rename the result onto ``path``.
+@contextlib.contextmanager
+def atomic_path(path, *, fsync: bool = False):
+    """A temporary file next to ``path``, renamed onto ``path`` when the block succeeds.
+
+    The ``with`` block writes the whole file to the yielded name (a hidden
+    ``.partial-*`` file in the same directory, with ``path``'s suffix). When the
+    block ends without an exception the file is renamed onto ``path``; when it
+    raises, the temporary file is removed and ``path`` is left as it was.
 
     Parameters
     ----------
     path : str or Path
         Final file name.
-    write : callable
-        ``write(tmp)`` writes the whole file to the path ``tmp`` (same suffix).
     fsync : bool, optional
         Also force the file's data to the disk before the rename (and the
         directory entry after it), so that the file survives a power failure
         too, not only a killed process.
+
+    Yields
+    ------
+    str
+        The temporary file's name.
+
+    Raises
+    ------
+    ValueError
+        ``path`` cannot be written (:func:`check_writable`), or no temporary
+        file can be made next to it.
     """
     path = Path(path)
     check_writable(path)
@@ -65,7 +98,7 @@ def atomic_write(path, write, *, fsync: bool = False) -> Path:
         raise ValueError(f"output path {str(path)!r}: cannot write ({exc.strerror})") from None
     os.close(fd)
     try:
-        write(tmp)
+        yield tmp
         # mkstemp makes the file private (0600); give it the usual permissions
         os.chmod(tmp, 0o666 & ~_umask())
         if fsync:
@@ -76,7 +109,48 @@ def atomic_write(path, write, *, fsync: bool = False) -> Path:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-    return path
+
+
+def atomic_write(path, write, *, fsync: bool = False) -> Path:
+    """Call ``write(tmp_path)`` and rename the result onto ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        Final file name.
+    write : callable
+        ``write(tmp)`` writes the whole file to the path ``tmp`` (same suffix).
+    fsync : bool, optional
+        As for :func:`atomic_path`.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Notes
+    -----
+    When ``write`` raises, ``path`` keeps its earlier content (or stays
+    absent) and no temporary file is left behind (:func:`atomic_path`).
+    """
+    with atomic_path(path, fsync=fsync) as tmp:
+        write(tmp)
+    return Path(path)
+
+
+def write_text(path, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically (:func:`atomic_write`); returns ``path``."""
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+
+
+def save_figure(fig, path, **kwargs) -> Path:
+    """Save the matplotlib figure ``fig`` to ``path`` atomically; returns ``path``.
+
+    The format is taken from ``path``'s suffix (PNG without one); ``kwargs`` go to
+    ``fig.savefig`` (``dpi``).
+    """
+    fmt = Path(path).suffix[1:].lower() or "png"
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, format=fmt, **kwargs))
 
 
 def _fsync_path(path) -> None:

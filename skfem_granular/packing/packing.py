@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..dem.particles import pad_outlines
+from ..io.files import atomic_write
 
 __all__ = ["Packing", "load_packing"]
 
@@ -95,11 +96,15 @@ class Packing:
         return d
 
     def save(self, path) -> Path:
-        """Write the packing to ``path`` (``.npz``; plain arrays and a JSON header)."""
+        """Write the packing to ``path`` (``.npz`` added if missing; plain arrays and a JSON
+        header), at a temporary name renamed when complete (an earlier file stays whole)."""
         path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
         V, counts = pad_outlines([np.asarray(P, dtype=float) for P in self.outlines])
-        np.savez(path, vertices=V, counts=counts, meta=np.array(json.dumps(self.meta())))
-        return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+        meta = np.array(json.dumps(self.meta()))
+        return atomic_write(path, lambda tmp: np.savez(tmp, vertices=V, counts=counts,
+                                                       meta=meta))
 
 
 def load_packing(path) -> Packing:

@@ -54,7 +54,8 @@ Modules (each imports only those above it):
 - :mod:`.tables`: :func:`write_tables`; :mod:`.plots`: the figures
   (:func:`all_plots`);
 - :mod:`.driver`: :func:`run_study`, :class:`StudyResult`, :func:`load_records`,
-  the default executor (:func:`local_pool`);
+  the default executor (:func:`local_pool`), :class:`StudyFolder` (a study's folder is
+  its own: not a simulation run's nor another study's, one live writer);
 - :mod:`.collapse_run`, :mod:`.collapse`: the collapse study (above).
 """
 
@@ -68,7 +69,7 @@ from .collapse_run import (
     plan_collapse,
 )
 from .definitions import COLUMNS, FAXEN, SCENE, STUDIES, Run, faxen_drag, plan
-from .driver import StudyResult, load_records, local_pool, run_study
+from .driver import StudyFolder, StudyResult, load_records, local_pool, run_study
 from .meshes import mirror_symmetric, renumbered
 from .plots import STYLE, all_plots, plot_convergence, plot_fig2, plot_pareto
 from .tables import write_tables
@@ -83,6 +84,7 @@ __all__ = [
     "STUDIES",
     "STYLE",
     "Run",
+    "StudyFolder",
     "StudyResult",
     "all_plots",
     "analyse",

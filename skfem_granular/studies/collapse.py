@@ -20,13 +20,12 @@ cluster the runs under way finish their task when the client goes.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..io import write_text
 from .collapse_run import CollapseRun, cached_packing, check_folder, execute_collapse
 
 __all__ = ["CollapseStudy", "merge_records", "run_collapse_study", "summarise_collapses"]
@@ -122,11 +121,8 @@ def merge_records(path, new: list) -> list:
             old = []  # not a records file: the run folders hold every record anyway
         keys = {r["run"] for r in new}
         records = [r for r in old if r["run"] not in keys] + list(new)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-        with os.fdopen(fd, "w") as fh:
-            fh.write(json.dumps({"records": records, "summary": summarise_collapses(records)},
-                                indent=1) + "\n")
-        os.replace(tmp, path)
+        write_text(path, json.dumps({"records": records,
+                                     "summary": summarise_collapses(records)}, indent=1) + "\n")
     return records
 
 

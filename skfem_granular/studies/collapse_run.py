@@ -19,7 +19,6 @@ run-out and kinetic-energy series).
 from __future__ import annotations
 
 import json
-import os
 import resource
 import time
 from collections.abc import Iterable
@@ -28,6 +27,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ..io import write_text
 
 __all__ = ["MEDIA", "STATES", "CollapseRun", "cached_packing", "check_folder",
            "execute_collapse", "plan_collapse"]
@@ -188,8 +189,7 @@ def check_folder(run: CollapseRun, folder) -> None:
                 + ", ".join(f"{k} = {spec[k]!r}" for k in diff)
                 + "); use another output folder for other settings")
         return
-    folder.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(spec) + "\n")
+    write_text(path, json.dumps(spec) + "\n")
 
 
 #: the settings of a run besides its key that decide its numbers (checked by check_folder)
@@ -224,8 +224,6 @@ def cached_packing(n: int, state: str, seed: int, packings, *, aspect: float = 0
     processes (or hosts sharing the folder) preparing the same column at once leave one
     whole file.
     """
-    import tempfile
-
     from ..packing import load_packing, prepare_column
 
     name = (f"{state}_a{aspect:g}_n{n}_seed{seed}" + (f"_d{d_mean * 1e3:g}mm" if d_mean != 1e-3
@@ -234,10 +232,7 @@ def cached_packing(n: int, state: str, seed: int, packings, *, aspect: float = 0
     if path.exists():
         return load_packing(path)
     pk = prepare_column(n, aspect, state, seed=seed, t_max=t_max, d_mean=d_mean, E=E)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".npz", dir=path.parent)
-    os.close(fd)
-    os.replace(pk.save(tmp), path)
+    pk.save(path)  # atomically: preparers of the same column at once leave one whole file
     return pk
 
 
@@ -328,7 +323,7 @@ def _add_cost(folder: Path, cpu: float, wall: float, dofs: list, phases: dict,
                               ("mesh_min_area_ratio", "min_area_ratio_over_steps")):
                 c[key] = min(c.get(key, float("inf")), float(mesh[ours]))
             c["mesh_steps_checked"] = c.get("mesh_steps_checked", 0) + mesh["steps_checked"]
-        path.write_text(json.dumps(c) + "\n")
+        write_text(path, json.dumps(c) + "\n")
     return {"cpu_s": c["cpu_s"], "wall_s": c["wall_s"], "processes": c["processes"],
             "dofs_mean": c["dofs_sum"] / c["dofs_steps"] if c["dofs_sum"] else None,
             "dofs_max": c.get("dofs_max"), "peak_mb": c.get("peak_mb"),
@@ -380,7 +375,7 @@ def execute_collapse(run: CollapseRun, out_dir, packings=None) -> dict:
                 peak = max(peak, E)
                 if t > run.t_min_tau * tau and E < run.stop_ratio * peak:
                     steps.close()  # at rest: the files are completed by the generator
-                    (folder / "rest.json").write_text(json.dumps(
+                    write_text(folder / "rest.json", json.dumps(
                         {"t": t, "t_over_tau": t / tau, "energy_ratio": E / peak,
                          "stop_ratio": run.stop_ratio, "at_rest": True,
                          "steps": sim.steps_done}) + "\n")

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io import save_figure
 from .analysis import orders, pareto_front, sweet_spot
 
 STYLE = {"uniform": ("o", "C0"), "graded": ("s", "C1"), "sigma": ("^", "C2"), "dt": ("D", "C3")}
@@ -55,9 +56,10 @@ def _finish(plt, fig, ax, path, xlabel, title, fontsize=8) -> Path:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=fontsize)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    try:
+        return save_figure(fig, path, dpi=120)
+    finally:
+        plt.close(fig)
 
 
 def plot_pareto(rows, path, title=""):

@@ -36,13 +36,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from ..io import write_text
 from .analysis import pareto_front
 
 SCENE_NAME = "settling_disk_channel"
@@ -183,9 +183,7 @@ def run(out_dir, smoke: bool = False, runs=None, log=print) -> list[dict]:
                 continue
         rec = execute(r)
         computed.add(r.key)
-        tmp = path.with_name(f".{path.name}.tmp")
-        tmp.write_text(json.dumps(rec))
-        os.replace(tmp, path)
+        write_text(path, json.dumps(rec))
         records[r.key] = rec
         if log:
             log(f"{r.key}: {rec['dofs']} DOFs, {rec['remeshes']} remeshes, re_max "

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io import save_figure
 from .settling import QUANTITIES, front
 
 MARKERS = {"base": "*", "delta_l": "o", "sigma": "^", "dt": "D", "remesh": "s"}
@@ -56,9 +57,10 @@ def plot_pareto(rows, path) -> Path:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=6)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    try:
+        return save_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)
 
 
 def plot_convergence(rows, path) -> Path:
@@ -85,6 +87,7 @@ def plot_convergence(rows, path) -> Path:
         ax.legend(fontsize=6)
     fig.suptitle("settling disk (check 2): error per axis, the others at the base")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    try:
+        return save_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..io import atomic_write, write_text
 from .analysis import orders
 from .definitions import COLUMNS
 
@@ -18,14 +19,19 @@ def _fmt(v, full=False):
 
 
 def write_tables(rows, out_dir, study, smoke) -> list[Path]:
-    """``table.csv`` (all columns) and ``table.md`` (the readable subset) with fitted orders."""
+    """``table.csv`` (all columns) and ``table.md`` (the readable subset) with fitted orders,
+    each written atomically (a failure leaves an earlier table as it was)."""
     import csv
 
     out_dir = Path(out_dir)
-    with open(out_dir / "table.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=COLUMNS)
-        w.writeheader()
-        w.writerows({c: _fmt(r[c], full=True) for c in COLUMNS} for r in rows)
+
+    def write_csv(tmp) -> None:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=COLUMNS)
+            w.writeheader()
+            w.writerows({c: _fmt(r[c], full=True) for c in COLUMNS} for r in rows)
+
+    atomic_write(out_dir / "table.csv", write_csv)
     cols: tuple[str, ...] = (
         "family",
         "n_sides" if study == "faxen" else "h",
@@ -69,5 +75,5 @@ def write_tables(rows, out_dir, study, smoke) -> list[Path]:
         "Fitted orders (h-equivalent, err ~ DOFs^(-p/2)): "
         + ", ".join(f"{k} {v:.2f}" for k, v in orders(rows).items()),
     ]
-    (out_dir / "table.md").write_text("\n".join(lines) + "\n")
+    write_text(out_dir / "table.md", "\n".join(lines) + "\n")
     return [out_dir / "table.csv", out_dir / "table.md"]

@@ -27,7 +27,7 @@ drawn in orange, DEM walls in grey.
 
 from ..io import read_pvd
 from ._common import require_pyvista
-from .animation import render_series
+from .animation import FPS_RANGE, check_fps, render_series
 from .frames import Picture, render_frame
 from .layers import CORE_EDGE, CORE_FILL, FIELDS, MESH_EDGE, SHADOW_EDGE, VECTORS, WALL_FILL
 
@@ -35,11 +35,13 @@ __all__ = [
     "CORE_EDGE",
     "CORE_FILL",
     "FIELDS",
+    "FPS_RANGE",
     "MESH_EDGE",
     "SHADOW_EDGE",
     "VECTORS",
     "WALL_FILL",
     "Picture",
+    "check_fps",
     "read_pvd",
     "render_frame",
     "render_series",

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io import atomic_write, check_writable
 from ._common import (
     View,
     check_style,
@@ -86,7 +87,9 @@ def render_frame(
     particles_vtu : str or Path, optional
         The matching ``particles_*.vtu``; its outlines are drawn on top.
     path_png : str or Path, optional
-        Write the picture here (PNG); ``None`` only returns it.
+        Write the picture here (PNG, under a temporary name renamed when
+        complete: a failure leaves an earlier file as it was); ``None`` only
+        returns it.
     field : {"speed", "pressure", "vorticity", "mesh"}
         A scalar field with its colour bar, or the triangles of the mesh.
     vectors : {None, "glyphs", "streamlines"}
@@ -124,13 +127,17 @@ def render_frame(
     ImportError
         pyvista is not installed (``pip install 'skfem-granular[plot]'``).
     ValueError
-        Bad arguments or missing files.
+        Bad arguments, missing files, or a ``path_png`` that cannot be written
+        (checked before rendering).
+    OSError
+        Writing the PNG failed (a full disk): an earlier file stays as it was.
     """
     check_style(field, vectors, density)
     if path_png is not None:
         path_png = Path(path_png)
         if path_png.suffix.lower() != ".png":
             raise ValueError(f"path_png {str(path_png)!r}: must end in .png")
+        check_writable(path_png)  # before any rendering
     pv = require_pyvista()
     flow = read_vtu(pv, flow_vtu, "flow_vtu")
     particles = None if particles_vtu is None else read_vtu(pv, particles_vtu, "particles_vtu")
@@ -171,7 +178,7 @@ def render_frame(
 
 
 def _save_png(image, path: Path) -> None:
+    """Write ``image`` as a PNG at a temporary name and rename it onto ``path``."""
     from PIL import Image
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(image).save(path)
+    atomic_write(path, lambda tmp: Image.fromarray(image).save(tmp, format="PNG"))
