@@ -15,11 +15,11 @@ import numpy as np
 import scipy.sparse as sp
 from skfem import Basis, ElementTriP1, ElementTriP2, ElementVector, FacetBasis, MeshTri, asm
 from skfem.assembly import Dofs
-from skfem.mapping import MappingAffine
 from skfem.quadrature import get_quadrature
 
 from . import forms
 from .convection import Convection, ConvectionKernel, element_pattern
+from .numbering import Numbering, reference_doflocs
 from .ordering import element_incidence, fill_reducing_ordering
 
 #: How the built-in blocks can be assembled (:class:`TaylorHood`'s ``assembly``).
@@ -369,7 +369,8 @@ class TaylorHood:
     def velocity_doflocs(self) -> np.ndarray:
         """Coordinates ``(2, nu)`` of each velocity DOF."""
         if self.reference is self:
-            return self._reference_doflocs(ElementVector(ElementTriP2()), self.velocity_dofs)
+            return reference_doflocs(self.mesh, ElementVector(ElementTriP2()),
+                                     self.velocity_dofs)
         # affine triangles: P2 nodes are vertices and edge midpoints, linear in the vertices
         P = self.p1_to_p2
         out = np.empty((2, self.nu))
@@ -377,26 +378,16 @@ class TaylorHood:
             out[c, 0::2] = out[c, 1::2] = P @ self.mesh.p[c]
         return out
 
-    def numbering(self, field: str) -> _Numbering:
+    def numbering(self, field: str) -> Numbering:
         """The element, DOF numbering and DOF locations of the scalar P2 (``"scalar"``) or
         the pressure (``"pressure"``) field, as a scikit-fem basis of this mesh has them,
         without building one (its quadrature values cost ~20 ms at 20k nodes): what
         :func:`~skfem_granular.fluid.points.evaluation_matrix` reads, and ``doflocs``."""
         if field == "scalar":
-            return _Numbering(ElementTriP2(), self.scalar_dofs, self)
+            return Numbering(ElementTriP2(), self.scalar_dofs, self.mesh)
         if field == "pressure":
-            return _Numbering(ElementTriP1(), self.pressure_dofs, self)
+            return Numbering(ElementTriP1(), self.pressure_dofs, self.mesh)
         raise ValueError(f"field = {field!r}: must be 'scalar' or 'pressure'")
-
-    def _reference_doflocs(self, elem, dofs: Dofs) -> np.ndarray:
-        """DOF locations ``(2, N)`` of ``elem`` on this space's mesh, as scikit-fem's
-        bases compute them (without building a basis)."""
-        mapped = MappingAffine(self.mesh).F(elem.doflocs.T)  # (2, nel, nlocal)
-        out = np.zeros((mapped.shape[0], dofs.N))
-        for i in range(mapped.shape[0]):
-            for j in range(dofs.element_dofs.shape[0]):
-                out[i, dofs.element_dofs[j]] = mapped[i, :, j]
-        return out
 
     @cached_property
     def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
@@ -431,7 +422,7 @@ class TaylorHood:
         edofs = self.scalar_dofs.element_dofs  # (6, nel)
         nodes, first = np.unique(edofs.ravel(), return_index=True)
         local, cells = np.unravel_index(first, edofs.shape)
-        p1 = _Numbering(ElementTriP1(), self.pressure_dofs)
+        p1 = Numbering(ElementTriP1(), self.pressure_dofs)
         E = evaluation_matrix(p1, cells, ref[:, local])
         out = sp.csr_matrix((self.scalar_dofs.N, self.np_))
         out = E[np.argsort(nodes)] if nodes.size == self.scalar_dofs.N else out
@@ -456,20 +447,3 @@ class TaylorHood:
 
         rhs = asm(curl_form, self.sb, u=self.ub.interpolate(u))
         return self._scalar_mass_lu.solve(rhs)
-
-
-class _Numbering:
-    """What :func:`~skfem_granular.fluid.points.evaluation_matrix` reads of a basis: its
-    element and DOF numbering (no basis values); with a ``space``, also ``doflocs``."""
-
-    def __init__(self, elem, dofs: Dofs, space: TaylorHood | None = None):
-        self.elem, self.element_dofs, self.N = elem, dofs.element_dofs, dofs.N
-        self._where = (space, dofs)
-
-    @cached_property
-    def doflocs(self) -> np.ndarray:
-        """DOF locations ``(2, N)``, as scikit-fem's basis on the space's mesh has them."""
-        space, dofs = self._where
-        if space is None:
-            raise ValueError("doflocs: this numbering was made without a space")
-        return space._reference_doflocs(self.elem, dofs)
