@@ -8,8 +8,6 @@ refused from its estimate before the mesher runs, by the simulation's budget and
 by the mesher itself.
 """
 
-import resource
-import time
 from dataclasses import replace
 
 import pytest
@@ -42,19 +40,23 @@ def test_unknowns_and_memory_follow_the_triangles():
     assert e.unknowns == 4500 and e.memory == 4500 * 9000.0
 
 
-def test_graded_refusal_is_quick_and_small():
+def test_graded_refusal_comes_before_any_meshing(monkeypatch):
+    """Refused from the estimate: Triangle is never called (a mesh of 2.67e8 nodes would
+    take hours and tens of GB)."""
+    import triangle
+
+    def never(*args, **kwargs):
+        raise AssertionError("triangle.triangulate called: the refusal came after meshing")
+
+    monkeypatch.setattr(triangle, "triangulate", never)
     sc = Scene.bundled("single_particle")
     sc = replace(sc, mesh=MeshSpec(kind="graded", delta_l=1e-7), output_dir=None)
-    t0 = time.perf_counter()
-    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     with pytest.raises(BudgetError, match=r"mesh.delta_l = 1e-07: the mesh would have about"):
         Simulation(sc)
     with pytest.raises(ValueError, match=r"the graded circles would hold 2.67e\+08 nodes"):
         meshing.graded_mesh((0, 0, 3e-3, 11e-3),
                             [Polygon.regular(24, 0.4e-3, center=(1.5e-3, 5.5e-3)).vertices],
                             delta_l=1e-7)
-    assert time.perf_counter() - t0 < 2.0
-    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0 < 100_000  # kB
 
 
 def test_a_raised_limit_lets_the_run_go():
@@ -65,17 +67,22 @@ def test_a_raised_limit_lets_the_run_go():
     assert sim.mesh.t.shape[1] == 338
 
 
-def test_a_million_particles_are_refused_before_parsing(tmp_path, capsys):
+def test_a_million_particles_are_refused_before_parsing(tmp_path, capsys, monkeypatch):
     """10^6 [[particles]] entries (before: still parsing after 150 s at 0.95 GB): the file's
-    size is refused before it is read."""
+    size is refused before it is parsed (the TOML parser is never called)."""
+    import tomllib
+
     from skfem_granular.cli import main
+
+    def never(*args, **kwargs):
+        raise AssertionError("tomllib.loads called: the refusal came after parsing")
+
+    monkeypatch.setattr(tomllib, "loads", never)
 
     entry = ("[[particles]]\nsides = 6\nradius = 1e-5\ncenter = [1e-3, 1e-3]\n"
              "density = 2650.0\n")
     path = tmp_path / "million.toml"
     path.write_text("[domain]\nbox = [0.0, 0.0, 3e-3, 3e-3]\n" + entry * 10**6)
-    t0 = time.perf_counter()
     assert main(["run", str(path), "--no-progress"]) == 2
-    assert time.perf_counter() - t0 < 1.0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "million.toml': 77 MB; at most 20 MB" in err[0], err
