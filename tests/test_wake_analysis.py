@@ -1,21 +1,11 @@
-"""The oscillation analysis of ``benchmarks/wake_meshes.py`` on constructed signals of known
-period, amplitude and mean (sampled every 1 ms, as the benchmark's stored histories)."""
-
-import importlib.util
-from pathlib import Path
+"""The oscillation analysis (:mod:`skfem_granular.validation.oscillation`) on constructed
+signals of known period, amplitude and mean (sampled every 1 ms, as the wake benchmark's
+histories)."""
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _bench():
-    spec = importlib.util.spec_from_file_location("wake_meshes",
-                                                  ROOT / "benchmarks/wake_meshes.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    return bench
+from skfem_granular.validation import oscillation as bench
 
 
 @pytest.mark.parametrize("phase", [0.0, 0.7, 2.0])
@@ -23,7 +13,6 @@ def test_a_sine_gives_its_period_amplitude_mean_and_strouhal_number(phase):
     """``dx = m + A sin(2 pi t / T + phase)`` with T = 0.11 s, A = 340 um, m = -380 um,
     falling at 0.12 m/s: period to 0.2 %, amplitude and mean to 0.5 um (sampling at 1 ms
     with parabolic refinement), Strouhal number d / (T U) = 0.1894 for d = 2.5 mm."""
-    bench = _bench()
     t = np.arange(1, 1051) * 1e-3 + 2.5e-4
     T, A, m, U, d = 0.11, 340e-6, -380e-6, 0.12, 2.5e-3
     dx = m + A * np.sin(2.0 * np.pi * t / T + phase)
@@ -41,7 +30,6 @@ def test_a_sine_gives_its_period_amplitude_mean_and_strouhal_number(phase):
 def test_extrema_alternate_and_skip_the_ends_of_the_record():
     """A cosine from a crest: the record's first sample is no turning point, so the extrema
     are the troughs and crests inside, alternating, at t = (k + 1/2) T / 2 ... and k T."""
-    bench = _bench()
     T = 0.1
     t = np.linspace(0.0, 0.42, 421)
     te, ye = bench.extrema(t, np.cos(2.0 * np.pi * t / T))
@@ -50,7 +38,6 @@ def test_extrema_alternate_and_skip_the_ends_of_the_record():
 
 
 def test_too_short_a_window_is_refused():
-    bench = _bench()
     t = np.arange(1, 1051) * 1e-3
     dx = np.sin(2.0 * np.pi * t / 0.11)
     with pytest.raises(ValueError, match="window"):
