@@ -346,18 +346,7 @@ def test_single_particle_graded_mesh_is_the_same_on_both_paths():
     assert meshing.mesh_stats(direct).min_angle >= 30.0
 
 
-def _benchmark(name):
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"benchmarks_{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-#: pore flux (m^2/s per unit depth) of benchmarks/mesh_accuracy.py's case on the field
+#: pore flux (m^2/s per unit depth) of the honeycomb case (validation.pore_flux) on the field
 #: mesh with delta_l = 6.25 um (191625 DOFs; delta_l = 12.5 um is 0.072 % above it;
 #: benchmarks/results/mesh_accuracy.json)
 PORE_FLUX_REFERENCE = 1.802973e-09
@@ -368,10 +357,11 @@ def test_pore_flux_through_a_touching_honeycomb():
     pores, steady Stokes on the default mesh (delta_l = 0.2 mm): pore flux within 1 %
     of the converged reference (measured +0.53 %, 10378 DOFs; +5.9 % before the outline
     edges along the gaps were split; the uniform 0.2 / 0.1 mm meshes +8.6 / +1.2 %)."""
-    bench = _benchmark("mesh_accuracy")
-    cores = bench.honeycomb()
-    value = meshing.build("field", bench.BOX, cores, delta_l=DL)
-    q, _ = bench.line_fluxes(value, cores)
+    from skfem_granular.validation import pore_flux
+
+    cores = pore_flux.honeycomb()
+    value = meshing.build("field", pore_flux.BOX, cores, delta_l=DL)
+    q, _ = pore_flux.line_fluxes(value, cores)
     assert len(q) == 4
     assert abs(sum(q[:-1]) / PORE_FLUX_REFERENCE - 1.0) <= 0.01
 
