@@ -25,8 +25,6 @@ import platform
 import time
 from pathlib import Path
 
-import numpy as np
-
 import meshing
 from skfem_granular.validation.pore_flux import BOX, CORE, honeycomb, line_fluxes
 
