@@ -1,6 +1,7 @@
 """Checkpoints: a resumed run reproduces an uninterrupted one bit for bit."""
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -171,11 +172,18 @@ def test_checkpoint_is_plain_data(tmp_path):
     assert np.array_equal(u, sim.last_good.u_n)
     with zipfile.ZipFile(path) as zf:
         header = json.loads(zf.read("header.json"))
-    assert header["format"] == "skfem-granular checkpoint" and header["version"] == 3
+    assert header["format"] == "skfem-granular checkpoint" and header["version"] == 4
     assert {"stepper.mesh.mesh.doflocs", "stepper.mesh.mesh.t", "dem.contact_keys",
-            "history.step.t", "history.particle.vy"} <= names
+            "history.last.particle.vy"} <= names
+    assert not any(n.startswith("history.") and "last" not in n for n in names)  # in the csv
     data = checkpoint.load(tmp_path)
     assert data["k"] == 6 and len(data["history"]) == 6
+    for mine, back in zip(sim.history.rows, data["history"], strict=True):  # read back exactly
+        assert mine.keys() == back.keys()
+        for c, v in mine.items():
+            assert type(back[c]) is (np.ndarray if isinstance(v, np.ndarray) else
+                                     int if isinstance(v, (int, np.integer)) else float), c
+            assert np.array_equal(v, back[c], equal_nan=True), c
     back = data["scene"]  # rebuilt through the validating constructors
     assert replace(back, particles=sim.scene.particles) == sim.scene
     for p, q in zip(back.particles, sim.scene.particles, strict=True):
@@ -355,3 +363,76 @@ def test_same_content_same_bytes(tmp_path, monkeypatch):
     header, back = plain.read(tmp_path / "2.npz")
     assert np.array_equal(plain.decode(header["content"], back, plain.Registry())["a"],
                           np.arange(5.0))
+
+
+# ---------------------------------------------------------------- the history in history.csv
+def _as_version_3(directory):
+    """Rewrite the checkpoint in ``directory`` as version 3 wrote it: the whole history inside."""
+    from skfem_granular.io import History, plain
+    from skfem_granular.simulation import checkpoint
+
+    data = checkpoint.load(directory)
+    rows, K = data["history"], len(data["scene"].particles)
+    step = {c: np.array([r[c] for r in rows], dtype=np.int64 if c == "iterations" else float)
+            for c in History.STEP_COLUMNS}
+    part = {c: np.array([r[c] for r in rows]).reshape(len(rows), K)
+            for c in History.PARTICLE_COLUMNS}
+    content = {key: data[key] for key in ("scene", "k", "dem", "stepper", "frames")}
+    content["history"] = {"particles": K, "step": step, "particle": part}
+    node, arrays = plain.encode(content, checkpoint.REGISTRY)
+    header = {"format": checkpoint.FORMAT, "version": 3, "written_by": "skfem-granular 0.x",
+              "content": node}
+    plain.write(Path(directory) / "checkpoint.npz", header, arrays)
+
+
+def test_version_3_checkpoint_holding_the_history_is_still_read(tmp_path):
+    """A checkpoint of the earlier format (the rows inside) resumes as before: from its own
+    rows, whatever history.csv holds, to the uninterrupted run's history byte for byte."""
+    scene = Scene.from_toml(SCENES / "single_particle.toml")
+    dt = scene.time.dt
+    Simulation(_with(scene, 10 * dt, every=4), output_dir=tmp_path / "full").run(progress=False)
+    Simulation(_with(scene, 6 * dt, every=4), output_dir=tmp_path / "part").run(progress=False)
+    _as_version_3(tmp_path / "part")
+    (tmp_path / "part" / "history.csv").write_text("t\n0\n")  # not the rows: version 3 has them
+    from skfem_granular.simulation import checkpoint
+
+    data = checkpoint.load(tmp_path / "part")
+    assert data["version"] == 3 and data["k"] == 4 and len(data["history"]) == 4
+    Simulation.resume(tmp_path / "part", t_end=10 * dt).run(progress=False)
+    assert ((tmp_path / "part" / "history.csv").read_bytes()
+            == (tmp_path / "full" / "history.csv").read_bytes())
+    with np.load(tmp_path / "part" / "checkpoint.npz", allow_pickle=False) as npz:  # rewritten
+        assert "history.step.t" not in npz.files and "history.last.particle.vy" in npz.files
+
+
+def test_history_log_keeps_the_digest_of_the_bytes_it_wrote(tmp_path):
+    """CSVLog.digest(n) is the SHA-256 of the file from its start to the end of row n (n the
+    rows written or one fewer), however the rows came: with the header, one or more per flush,
+    and when a resumed run's log opens with rows."""
+    import hashlib
+
+    from skfem_granular.io import CSVLog, History
+
+    def prefix_sha(path, n):
+        lines = path.read_bytes().split(b"\n")
+        return hashlib.sha256(b"".join(x + b"\n" for x in lines[:n + 1])).hexdigest()
+
+    h = History(3)
+    path = tmp_path / "h.csv"
+    log = CSVLog(h, path)
+    assert log.digest(0) == prefix_sha(path, 0)
+    rng = np.random.default_rng(1)
+    for per_flush in (1, 3, 1, 2):
+        for _ in range(per_flush):
+            h.append(rng.random(), 1e-5, 2, error=np.nan, x=rng.standard_normal(3) * 1e-300,
+                     vy=-rng.random(3), contacts=np.array([0.0, 1.0, -0.0]))
+        log.flush()
+        n = len(h)
+        assert log.digest(n) == prefix_sha(path, n) and log.digest(n - 1) == prefix_sha(path, n - 1)
+        with pytest.raises(ValueError, match="the digest is kept for"):
+            log.digest(n - 2)
+    log.close()
+    again = CSVLog(h, tmp_path / "again.csv")  # a resumed run's file: the same bytes
+    assert (tmp_path / "again.csv").read_bytes() == path.read_bytes()
+    assert again.digest(len(h) - 1) == prefix_sha(path, len(h) - 1)
+    again.close()

@@ -106,7 +106,7 @@ class RunOutput:
         self._timed(write)
 
     def checkpoint(self) -> None:
-        """History synced first, then the checkpoint: the file always has its rows."""
+        """History synced first, then the checkpoint (which follows the file's rows)."""
         if self.dir is None:
             return
         from . import checkpoint
