@@ -436,3 +436,141 @@ def test_history_log_keeps_the_digest_of_the_bytes_it_wrote(tmp_path):
     assert (tmp_path / "again.csv").read_bytes() == path.read_bytes()
     assert again.digest(len(h) - 1) == prefix_sha(path, len(h) - 1)
     again.close()
+
+
+# ---------------------------------------------------------------- the ring of two checkpoints
+HEAP = {"domain": {"box": [0.0, 0.0, 6e-3, 4e-3]},
+        "grid": {"nx": 3, "ny": 2, "sides": 6, "radius": 0.5e-3, "spacing": 1.05e-3,
+                 "origin": [1.9e-3, 0.45e-3], "density": 2650.0},
+        "time": {"t_end": 1.0, "dt": 2e-4}, "effects": {"fluid": False}}
+
+
+def _heap(steps, every=50):
+    """Six hexagons settling into a heap on the floor with the DEM alone (9 contacts from
+    step ~200 on): the cheapest scene whose checkpoints hold what a coupled run's do but the
+    fluid (2000 steps in about 3 s)."""
+    sc = Scene.from_dict(HEAP, name="dry-heap")
+    return replace(sc, time=replace(sc.time, t_end=steps * sc.time.dt), checkpoint_every=every,
+                   vtu_every=0)
+
+
+def _k_of(path):
+    """The step of the checkpoint file ``path`` (from its header only)."""
+    from skfem_granular.io import plain
+
+    header, _ = plain.read(path)
+    return header["content"]["$dict"]["k"]
+
+
+def _append_rows(folder, source, k, n):
+    """Rows ``k + 1 .. k + n`` of ``source`` appended to ``folder``'s history, as a run killed
+    after its checkpoint at ``k`` leaves them."""
+    lines = (source / "history.csv").read_text().splitlines(keepends=True)
+    with open(folder / "history.csv", "a") as f:
+        f.write("".join(lines[k + 1:k + 1 + n]))
+
+
+def test_history_changed_before_the_checkpoints_is_refused_in_one_line(tmp_path, capsys):
+    """A digit changed in a row before both checkpoints: resuming is refused with one line
+    naming history.csv (exit 2), the folder unchanged. Changed in a row after the previous
+    checkpoint: the newest is refused and the run resumes from the previous one, byte for
+    byte the straight run."""
+    from skfem_granular.cli import main
+
+    straight = tmp_path / "straight"
+    Simulation(_heap(300), output_dir=straight).run(progress=False)
+    text = (straight / "history.csv").read_text()
+    for row, column in ((10, 7), (270, 9)):
+        folder = tmp_path / f"row{row}"
+        folder.mkdir()
+        for name in ("checkpoint.npz", "checkpoint.prev.npz"):
+            (folder / name).write_bytes((straight / name).read_bytes())
+        lines = text.splitlines(keepends=True)
+        vals = lines[row].split(",")
+        vals[column] = vals[column].replace("1", "2", 1) if "1" in vals[column] else "1"
+        lines[row] = ",".join(vals)
+        (folder / "history.csv").write_text("".join(lines))
+        capsys.readouterr()
+        if row == 10:
+            before = {p.name: p.read_bytes() for p in folder.iterdir()}
+            assert main(["run", "--resume", str(folder), "--no-progress"]) == 2
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1, err
+            assert "history.csv'" in err[0] and "rows 1-299 are not the ones" in err[0]
+            assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+        else:
+            assert main(["run", "--resume", str(folder), "--no-progress"]) == 0
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1 and err[0].startswith("skfem-granular: warning: "), err
+            assert "rows 1-299 are not the ones" in err[0]
+            assert err[0].endswith("resuming from checkpoint.prev.npz (step 250)")
+            assert (folder / "history.csv").read_text() == text
+
+
+def test_corrupt_newest_checkpoint_falls_back_to_the_previous(tmp_path, capsys):
+    """checkpoint.npz cut short (a disk error, say): the run resumes from checkpoint.prev.npz
+    with one line of warning (also in the summary), byte for byte the straight run; the
+    checkpoint it resumed from becomes the newest, so the ring is good again."""
+    straight = tmp_path / "straight"
+    Simulation(_heap(300), output_dir=straight).run(progress=False)
+    part = tmp_path / "part"
+    Simulation(_heap(280), output_dir=part).run(progress=False)  # checkpoints 250, 200
+    blob = (part / "checkpoint.npz").read_bytes()
+    (part / "checkpoint.npz").write_bytes(blob[:len(blob) // 2])
+    capsys.readouterr()
+    sim = Simulation.resume(part, t_end=300 * 2e-4)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "checkpoint.npz'" in err[0] and "not a readable file" in err[0]
+    assert err[0].endswith("resuming from checkpoint.prev.npz (step 200)")
+    assert sim.steps_done == 200
+    res = sim.run(progress=False)
+    assert (part / "history.csv").read_bytes() == (straight / "history.csv").read_bytes()
+    assert len(res.summary["warnings"]) == 1
+    assert _k_of(part / "checkpoint.npz") == 300 and _k_of(part / "checkpoint.prev.npz") == 250
+    # both unusable: the newest's reason, in one line
+    (part / "checkpoint.prev.npz").write_bytes(b"PK not a zip")
+    (part / "checkpoint.npz").write_bytes(b"")
+    with pytest.raises(ValueError, match=r"checkpoint.npz'.*not a readable file"):
+        Simulation.resume(part)
+
+
+def test_only_the_previous_checkpoint_left(tmp_path, capsys):
+    """No checkpoint.npz (removed by hand): the previous one is used, and says so."""
+    part = tmp_path / "part"
+    Simulation(_heap(120), output_dir=part).run(progress=False)  # checkpoints 50, 100
+    (part / "checkpoint.npz").unlink()
+    capsys.readouterr()
+    sim = Simulation.resume(part)
+    assert sim.steps_done == 50
+    assert "no checkpoint.npz" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("links", [True, False])
+def test_kept_file_is_complete_at_every_moment(tmp_path, monkeypatch, links):
+    """atomic_write(..., keep=...): the old file becomes the kept one only once the new one
+    is complete (a failed write changes neither); without hard links, a copy."""
+    import errno
+    import os
+
+    from skfem_granular.io import atomic_write, partial_files
+
+    if not links:
+        def no_link(*args, **kwargs):
+            raise OSError(errno.EPERM, "no links here")
+        monkeypatch.setattr(os, "link", no_link)
+    path, kept = tmp_path / "c.npz", tmp_path / "c.prev.npz"
+    atomic_write(path, lambda tmp: Path(tmp).write_text("one"), keep=kept)
+    assert path.read_text() == "one" and not kept.exists()
+    atomic_write(path, lambda tmp: Path(tmp).write_text("two"), keep=kept, fsync=True)
+    assert (path.read_text(), kept.read_text()) == ("two", "one")
+
+    def fail(tmp):
+        Path(tmp).write_text("thr")
+        raise OSError(errno.ENOSPC, "full")
+
+    with pytest.raises(OSError):
+        atomic_write(path, fail, keep=kept)
+    assert (path.read_text(), kept.read_text()) == ("two", "one")
+    atomic_write(path, lambda tmp: Path(tmp).write_text("three"), keep=kept)
+    assert (path.read_text(), kept.read_text()) == ("three", "two")
+    assert not partial_files(tmp_path)

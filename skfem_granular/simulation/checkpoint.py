@@ -22,6 +22,17 @@ checkpoint because a run resumed past the end of the run it continues gives
 that row the time of its clock (``Simulation._continue_clock``), so the
 file's copy of it may differ in ``t``.
 
+Checkpoints form a ring of two: ``checkpoint.npz`` (the newest) and
+``checkpoint.prev.npz`` (the one before it). A new checkpoint is written to a
+temporary file and synced; only then is the newest kept as the previous one
+(a hard link, renamed; a copy where links cannot be made) and the new file
+renamed onto ``checkpoint.npz``, so ``checkpoint.npz`` always names a
+complete checkpoint and the last good one is never removed before the new
+one is whole. :func:`load` reads the newest and, when it cannot be read or
+does not fit ``history.csv``, the previous one, with a one-line warning
+naming the reason; a run resumed from the previous one makes it the newest
+again (:func:`promote`) when it starts writing.
+
 The file is plain data (:mod:`skfem_granular.io.plain`): a zip of ``.npy``
 arrays (float64, int64 or bool) and ``header.json`` (format name and
 version, every other value, the type of every object), written atomically
@@ -60,7 +71,7 @@ from ..coupled.state import CoupledState
 from ..coupled.wake import WakeGrading
 from ..dem import ContactLaw, Polygon, PrescribedMotion
 from ..fluid.properties import Fluid
-from ..io import History, plain
+from ..io import History, keep_previous, plain
 from ..scene import Effects, MeshSpec, ParticleSpec, Scene, TimeSpec
 
 FORMAT = "skfem-granular checkpoint"
@@ -68,7 +79,10 @@ FORMAT = "skfem-granular checkpoint"
 VERSION = 4
 #: The versions read: 3 held the whole history (1 and 2, pickle files, are not read).
 READ_VERSIONS = (3, 4)
+#: The newest checkpoint.
 FILENAME = "checkpoint.npz"
+#: The checkpoint before the newest (the ring's other file).
+PREVIOUS_FILENAME = "checkpoint.prev.npz"
 #: The history file whose rows a checkpoint follows.
 HISTORY_FILENAME = "history.csv"
 #: The pickle checkpoints of earlier versions: refused, never unpickled.
@@ -335,6 +349,8 @@ def save(sim, k: int, series) -> Path:
     The history rows stay in ``history.csv`` (the run's live file, synced here if
     it lags behind; :class:`~skfem_granular.simulation.Simulation` syncs it at every
     checkpoint); the checkpoint keeps their number, their digest and the last row.
+    The checkpoint written before (if any) is kept as ``checkpoint.prev.npz`` once
+    the new one is complete.
 
     Raises
     ------
@@ -361,12 +377,29 @@ def save(sim, k: int, series) -> Path:
     node, arrays = plain.encode(content, REGISTRY)
     header = {"format": FORMAT, "version": VERSION, "written_by": f"skfem-granular {__version__}",
               "content": node}
-    return plain.write(Path(sim.output_dir) / FILENAME, header, arrays, fsync=True)
+    out = Path(sim.output_dir)
+    return plain.write(out / FILENAME, header, arrays, fsync=True, keep=out / PREVIOUS_FILENAME)
+
+
+def promote(directory, path) -> bool:
+    """Make the checkpoint at ``path`` the newest (``checkpoint.npz``) too; whether it changed.
+
+    A run resumed from ``checkpoint.prev.npz`` (the newest could not be used) calls it
+    when it rewrites the history, so that its next checkpoint keeps a good one as the
+    previous.
+    """
+    d, path = Path(directory), Path(path)
+    if path.name == FILENAME:
+        return False
+    return keep_previous(path, d / FILENAME, fsync=True)
 
 
 # ---------------------------------------------------------------------- read
 def load(directory) -> dict:
-    """Read and validate the checkpoint in ``directory``, with its history.
+    """Read and validate the newest usable checkpoint in ``directory``, with its history.
+
+    ``checkpoint.npz`` is read; when it is absent, cannot be read or does not fit
+    ``history.csv``, ``checkpoint.prev.npz`` is (and ``warning`` says why).
 
     Returns
     -------
@@ -375,7 +408,7 @@ def load(directory) -> dict:
         done), ``dem`` (:meth:`DEMSystem.save_state` dict), ``stepper``
         (``checkpoint_state()`` dict), ``history`` (the rows, read back from
         ``history.csv``), ``frames`` (``{series: [(t, file), ...]}``), ``path`` (the
-        file read) and ``version``.
+        file read), ``version`` and ``warning`` (one line, or None).
 
     Raises
     ------
@@ -384,18 +417,35 @@ def load(directory) -> dict:
         checkpoint of an earlier version, a file of another format or version,
         unknown or missing keys, fields or arrays, wrong dtypes or shapes,
         NaN/inf, values a scene would refuse; a history file that is missing,
-        shorter than the checkpoint's rows or changed.
+        shorter than the checkpoint's rows or changed. When both checkpoints
+        fail, the newest's reason.
     """
     d = Path(directory)
-    path = d / FILENAME
-    if not path.is_file():
+    newest, previous = d / FILENAME, d / PREVIOUS_FILENAME
+    if not newest.is_file() and not previous.is_file():
         if (d / LEGACY_FILENAME).is_file():
             raise ValueError(f"resume: {str(d / LEGACY_FILENAME)!r}: a pickle file, not loaded "
                              "(a checkpoint of an earlier version; loading it could run code "
                              "from the file): run again with this version to get a "
                              "checkpoint.npz")
         raise ValueError(f"resume: no {FILENAME} in {str(directory)!r} ({_why_none(d)})")
-    return _load(path)
+    if not newest.is_file():
+        data = _load(previous)
+        data["warning"] = (f"resume: no {FILENAME} in {str(d)!r}: resuming from "
+                           f"{PREVIOUS_FILENAME} (step {data['k']})")
+        return data
+    try:
+        return _load(newest)
+    except ValueError as exc:
+        if not previous.is_file():
+            raise
+        try:
+            data = _load(previous)
+        except ValueError:
+            raise exc from None
+        reason = " ".join(str(exc).split())
+        data["warning"] = f"{reason}; resuming from {PREVIOUS_FILENAME} (step {data['k']})"
+        return data
 
 
 def _load(path: Path) -> dict:
@@ -438,7 +488,7 @@ def _load(path: Path) -> dict:
     _check(data, where, K, rows)
     if version != 3:  # last: the file is read only once the checkpoint itself is good
         data["history"] = _history_from_file(path.parent, data["history"], K, where)
-    data.update(path=path, version=version)
+    data.update(path=path, version=version, warning=None)
     return data
 
 

@@ -17,7 +17,7 @@ is complete and ``summary.json`` is written with the run's ``status``.
 
 A checkpoint (:mod:`~skfem_granular.simulation.checkpoint`) follows the rows
 of ``history.csv`` instead of holding them, so its size does not grow with the
-run.
+run; the one before it is kept as ``checkpoint.prev.npz``.
 
 SIGINT and SIGTERM (in the main thread) stop a run at the end of the current
 step: the step is recorded, a checkpoint is written (so the run can be
@@ -38,6 +38,7 @@ file refuses a second live run into the same folder.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field, replace
@@ -159,6 +160,7 @@ class Simulation:
         self.steps_done = 0
         self.result: SimulationResult | None = None
         self._resumed_frames: dict = {}
+        self._resumed_from: Path | None = None  # the checkpoint file a resumed run read
         self._output: RunOutput | None = None  # while evolve() runs
         self.stepper: DryStepper | CoupledStepper
         if scene.dry:
@@ -197,7 +199,10 @@ class Simulation:
             Ready to :meth:`run` from the checkpointed step; output continues
             in ``directory`` (``history.csv`` rewritten to the checkpoint's rows
             when the run starts, ``.partial-*`` left-overs of a killed run removed).
-            ``t_end`` may not be before the checkpoint's time.
+            ``t_end`` may not be before the checkpoint's time. The newest usable
+            checkpoint is taken: ``checkpoint.npz``, or ``checkpoint.prev.npz`` when
+            that one cannot be used (one line on stderr and in the summary's
+            ``warnings`` saying why).
 
         Raises
         ------
@@ -239,6 +244,10 @@ class Simulation:
         sim._continue_clock()
         sim.steps_done = data["k"]
         sim._resumed_frames = data["frames"]
+        sim._resumed_from = data["path"]
+        if data["warning"]:
+            sim.warnings.append(data["warning"])
+            print(f"skfem-granular: warning: {data['warning']}", file=sys.stderr)
         return sim
 
     def _continue_clock(self) -> None:
@@ -347,7 +356,7 @@ class Simulation:
         bar = self._progress_bar(progress)
         self.status, self.stopped_by, self.stopped_at_once = "running", None, False
         signals = StopSignals()
-        out = RunOutput(self, signals, self._resumed_frames)
+        out = RunOutput(self, signals, self._resumed_frames, self._resumed_from)
         self._output = out
         try:
             with signals, threadpool_limits(limits=1, user_api="blas"):
