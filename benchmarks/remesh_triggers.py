@@ -3,7 +3,7 @@
 A long run remeshes whenever its moved mesh has, or would have one step ahead, a
 triangle below the ALE rule's bounds (smallest angle ``ALE_MIN_ANGLE``, area ratio
 ``ALE_MIN_AREA_RATIO``: :func:`skfem_granular.coupled.ale_rules.remesh_reason`). This
-script resumes a copy of a run's checkpoint (the run itself is not touched), lets it
+script resumes a copy of a run's checkpoint and history (the run itself is not touched), lets it
 step, and at every remesh the rule asks for records, for the mesh it replaces:
 
 - the triangles below the bounds now and at the poses extrapolated 1, 2 and 3 steps
@@ -150,6 +150,8 @@ def main(argv=None) -> None:
         folder = Path(tmp) / args.run.name
         folder.mkdir()
         shutil.copy2(args.run / "checkpoint.npz", folder / "checkpoint.npz")
+        if (args.run / "history.csv").exists():  # a checkpoint of version 4 follows its rows
+            shutil.copy2(args.run / "history.csv", folder / "history.csv")
         sim = Simulation.resume(folder)
         for _ in sim.evolve():
             step[0] += 1

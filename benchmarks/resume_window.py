@@ -1,8 +1,9 @@
 """Benchmark: a window of a long run, continued from its checkpoint.
 
 The 1000-grain collapses run for hours; what a change to the code does to them is
-measured on a few of their steps. This script copies a run's checkpoint into a
-scratch folder (the run itself is not touched), resumes it there and simulates
+measured on a few of their steps. This script copies a run's checkpoint (and the
+history.csv it follows) into a scratch folder (the run itself is not touched),
+resumes it there and simulates
 ``--steps`` steps, timing the resume (the first mesh's set-up) and every step (wall
 and CPU), with the run's phase timers, its remeshes and factorisations and the DOFs.
 The same checkpoint under two versions of the code gives the same steps (the
@@ -46,6 +47,8 @@ def window(run: Path, steps: int) -> dict:
         folder = Path(tmp) / run.name
         folder.mkdir()
         shutil.copy2(run / "checkpoint.npz", folder / "checkpoint.npz")
+        if (run / "history.csv").exists():  # a checkpoint of version 4 follows its rows
+            shutil.copy2(run / "history.csv", folder / "history.csv")
         w0, c0 = time.perf_counter(), time.process_time()
         sim = Simulation.resume(folder)
         resume = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,

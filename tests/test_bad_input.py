@@ -551,6 +551,7 @@ def _valid_checkpoint(tmp):
                      checkpoint_every=2)
         Simulation(sc, output_dir=tmp / "valid").run(progress=False)
         _VALID_CHECKPOINT["data"] = plain.read(tmp / "valid" / "checkpoint.npz")
+        _VALID_CHECKPOINT["history"] = (tmp / "valid" / "history.csv").read_text()
     header, arrays = _VALID_CHECKPOINT["data"]
     import copy
 
@@ -571,8 +572,9 @@ def _node(header, path):
 
 
 def _crafted(tmp, mutate, raw=None, **special):
-    """Resume from a valid checkpoint changed by ``mutate(header, arrays)``; ``special``:
-    :func:`_special_file` (a zip bomb, a huge declared shape, a deep header)."""
+    """Resume from a valid checkpoint changed by ``mutate(header, arrays)`` (next to the
+    history file it follows); ``special``: :func:`_special_file` (a zip bomb, a huge
+    declared shape, a deep header)."""
     import json
     import zipfile
 
@@ -582,6 +584,7 @@ def _crafted(tmp, mutate, raw=None, **special):
     mutate(header, arrays)
     d = tmp / "crafted"
     d.mkdir(exist_ok=True)
+    (d / "history.csv").write_text(_VALID_CHECKPOINT["history"])  # the rows it follows
     if special:
         _special_file(d / "checkpoint.npz", header, arrays, **special)
     elif raw is None:
@@ -595,6 +598,32 @@ def _crafted(tmp, mutate, raw=None, **special):
             for name, blob in raw.items():
                 zf.writestr(name, blob)
     return Simulation.resume(d)
+
+
+def _history(tmp, change):
+    """Resume from the valid checkpoint next to its ``history.csv`` changed by
+    ``change(lines)`` (the lines with their ends; ``None``: no history file)."""
+    from skfem_granular.io import plain
+
+    header, arrays = _valid_checkpoint(tmp)
+    d = tmp / "history-case"
+    d.mkdir(exist_ok=True)
+    plain.write(d / "checkpoint.npz", header, arrays)
+    lines = change(_VALID_CHECKPOINT["history"].splitlines(keepends=True))
+    if lines is not None:
+        (d / "history.csv").write_text("".join(lines))
+    return Simulation.resume(d)
+
+
+def _digit(row, column):
+    """The lines with the last digit of ``column`` (0: t) in data row ``row`` changed."""
+    def change(lines):
+        vals = lines[row].rstrip("\n").split(",")
+        v = vals[column]
+        i = max(j for j, ch in enumerate(v) if ch.isdigit() and (j == 0 or v[j - 1] != "e"))
+        vals[column] = v[:i] + str((int(v[i]) + 1) % 10) + v[i + 1:]
+        return lines[:row] + [",".join(vals) + "\n"] + lines[row + 1:]
+    return change
 
 
 def _nested(depth):
@@ -722,7 +751,7 @@ CHECKPOINTS = [
      lambda t: _crafted(t, lambda h, a: _node(h, "stepper.state.u_n").update(dtype=["f8"])),
      ["stepper.state.u_n: dtype ['f8']: must be one of float64, int64, bool, int32"]),
     ("checkpoint-unknown-version", lambda t: _crafted(t, lambda h, a: h.update(version=99)),
-     ["version = 99", "reads checkpoint version 3 only"]),
+     ["version = 99", "reads checkpoint versions 3 and 4 only"]),
     ("checkpoint-other-format",
      lambda t: _crafted(t, lambda h, a: h.update(format="something else")),
      ["format = 'something else'", "not a 'skfem-granular checkpoint' file"]),
@@ -761,6 +790,18 @@ CHECKPOINTS = [
      ["frames.flow[0]", "must be (t, 'flow_NNNNN.vtu')"]),
     ("checkpoint-history-rows",
      lambda t: _crafted(t, _set("k", 5)), ["k: = 5: must equal the number of history rows (2)"]),
+    ("checkpoint-history-file-missing", lambda t: _history(t, lambda lines: None),
+     ["history-case/history.csv'", "not found", "keeps its 2 rows there"]),
+    ("checkpoint-history-file-shorter", lambda t: _history(t, lambda lines: lines[:2]),
+     ["history.csv'", "1 complete rows, fewer than the 2", "the file was cut short"]),
+    ("checkpoint-history-file-changed", lambda t: _history(t, _digit(1, 9)),
+     ["history.csv'", "the bytes of its header and row 1 are not the ones checkpoint",
+      "the file was changed"]),
+    ("checkpoint-history-file-last-row", lambda t: _history(t, _digit(2, 9)),
+     ["history.csv'", "row 2 is not the last row checkpoint", "values other than t differ"]),
+    ("checkpoint-history-file-header",
+     lambda t: _history(t, lambda lines: [lines[0].replace("x_0", "x_9")] + lines[1:]),
+     ["history.csv'", "its header line is not the one of checkpoint", "K = 1 particles"]),
     ("checkpoint-zip-bomb", lambda t: _crafted(t, lambda h, a: None, bomb=400_000_000),
      ["stepper.state.u_n: compressed member (400000128 bytes inflated)",
       "arrays must be stored uncompressed"]),

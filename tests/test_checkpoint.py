@@ -1,6 +1,7 @@
 """Checkpoints: a resumed run reproduces an uninterrupted one bit for bit."""
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -171,11 +172,18 @@ def test_checkpoint_is_plain_data(tmp_path):
     assert np.array_equal(u, sim.last_good.u_n)
     with zipfile.ZipFile(path) as zf:
         header = json.loads(zf.read("header.json"))
-    assert header["format"] == "skfem-granular checkpoint" and header["version"] == 3
+    assert header["format"] == "skfem-granular checkpoint" and header["version"] == 4
     assert {"stepper.mesh.mesh.doflocs", "stepper.mesh.mesh.t", "dem.contact_keys",
-            "history.step.t", "history.particle.vy"} <= names
+            "history.last.particle.vy"} <= names
+    assert not any(n.startswith("history.") and "last" not in n for n in names)  # in the csv
     data = checkpoint.load(tmp_path)
     assert data["k"] == 6 and len(data["history"]) == 6
+    for mine, back in zip(sim.history.rows, data["history"], strict=True):  # read back exactly
+        assert mine.keys() == back.keys()
+        for c, v in mine.items():
+            assert type(back[c]) is (np.ndarray if isinstance(v, np.ndarray) else
+                                     int if isinstance(v, (int, np.integer)) else float), c
+            assert np.array_equal(v, back[c], equal_nan=True), c
     back = data["scene"]  # rebuilt through the validating constructors
     assert replace(back, particles=sim.scene.particles) == sim.scene
     for p, q in zip(back.particles, sim.scene.particles, strict=True):
@@ -355,3 +363,251 @@ def test_same_content_same_bytes(tmp_path, monkeypatch):
     header, back = plain.read(tmp_path / "2.npz")
     assert np.array_equal(plain.decode(header["content"], back, plain.Registry())["a"],
                           np.arange(5.0))
+
+
+# ---------------------------------------------------------------- the history in history.csv
+def _as_version_3(directory):
+    """Rewrite the checkpoint in ``directory`` as version 3 wrote it: the whole history inside."""
+    from skfem_granular.io import History, plain
+    from skfem_granular.simulation import checkpoint
+
+    data = checkpoint.load(directory)
+    rows, K = data["history"], len(data["scene"].particles)
+    step = {c: np.array([r[c] for r in rows], dtype=np.int64 if c == "iterations" else float)
+            for c in History.STEP_COLUMNS}
+    part = {c: np.array([r[c] for r in rows]).reshape(len(rows), K)
+            for c in History.PARTICLE_COLUMNS}
+    content = {key: data[key] for key in ("scene", "k", "dem", "stepper", "frames")}
+    content["history"] = {"particles": K, "step": step, "particle": part}
+    node, arrays = plain.encode(content, checkpoint.REGISTRY)
+    header = {"format": checkpoint.FORMAT, "version": 3, "written_by": "skfem-granular 0.x",
+              "content": node}
+    plain.write(Path(directory) / "checkpoint.npz", header, arrays)
+
+
+def test_version_3_checkpoint_holding_the_history_is_still_read(tmp_path):
+    """A checkpoint of the earlier format (the rows inside) resumes as before: from its own
+    rows, whatever history.csv holds, to the uninterrupted run's history byte for byte."""
+    scene = Scene.from_toml(SCENES / "single_particle.toml")
+    dt = scene.time.dt
+    Simulation(_with(scene, 10 * dt, every=4), output_dir=tmp_path / "full").run(progress=False)
+    Simulation(_with(scene, 6 * dt, every=4), output_dir=tmp_path / "part").run(progress=False)
+    _as_version_3(tmp_path / "part")
+    (tmp_path / "part" / "history.csv").write_text("t\n0\n")  # not the rows: version 3 has them
+    from skfem_granular.simulation import checkpoint
+
+    data = checkpoint.load(tmp_path / "part")
+    assert data["version"] == 3 and data["k"] == 4 and len(data["history"]) == 4
+    Simulation.resume(tmp_path / "part", t_end=10 * dt).run(progress=False)
+    assert ((tmp_path / "part" / "history.csv").read_bytes()
+            == (tmp_path / "full" / "history.csv").read_bytes())
+    with np.load(tmp_path / "part" / "checkpoint.npz", allow_pickle=False) as npz:  # rewritten
+        assert "history.step.t" not in npz.files and "history.last.particle.vy" in npz.files
+
+
+def test_history_log_keeps_the_digest_of_the_bytes_it_wrote(tmp_path):
+    """CSVLog.digest(n) is the SHA-256 of the file from its start to the end of row n (n the
+    rows written or one fewer), however the rows came: with the header, one or more per flush,
+    and when a resumed run's log opens with rows."""
+    import hashlib
+
+    from skfem_granular.io import CSVLog, History
+
+    def prefix_sha(path, n):
+        lines = path.read_bytes().split(b"\n")
+        return hashlib.sha256(b"".join(x + b"\n" for x in lines[:n + 1])).hexdigest()
+
+    h = History(3)
+    path = tmp_path / "h.csv"
+    log = CSVLog(h, path)
+    assert log.digest(0) == prefix_sha(path, 0)
+    rng = np.random.default_rng(1)
+    for per_flush in (1, 3, 1, 2):
+        for _ in range(per_flush):
+            h.append(rng.random(), 1e-5, 2, error=np.nan, x=rng.standard_normal(3) * 1e-300,
+                     vy=-rng.random(3), contacts=np.array([0.0, 1.0, -0.0]))
+        log.flush()
+        n = len(h)
+        assert log.digest(n) == prefix_sha(path, n) and log.digest(n - 1) == prefix_sha(path, n - 1)
+        with pytest.raises(ValueError, match="the digest is kept for"):
+            log.digest(n - 2)
+    log.close()
+    again = CSVLog(h, tmp_path / "again.csv")  # a resumed run's file: the same bytes
+    assert (tmp_path / "again.csv").read_bytes() == path.read_bytes()
+    assert again.digest(len(h) - 1) == prefix_sha(path, len(h) - 1)
+    again.close()
+
+
+# ---------------------------------------------------------------- the ring of two checkpoints
+HEAP = {"domain": {"box": [0.0, 0.0, 6e-3, 4e-3]},
+        "grid": {"nx": 3, "ny": 2, "sides": 6, "radius": 0.5e-3, "spacing": 1.05e-3,
+                 "origin": [1.9e-3, 0.45e-3], "density": 2650.0},
+        "time": {"t_end": 1.0, "dt": 2e-4}, "effects": {"fluid": False}}
+
+
+def _heap(steps, every=50):
+    """Six hexagons settling into a heap on the floor with the DEM alone (9 contacts from
+    step ~200 on): the cheapest scene whose checkpoints hold what a coupled run's do but the
+    fluid (2000 steps in about 3 s)."""
+    sc = Scene.from_dict(HEAP, name="dry-heap")
+    return replace(sc, time=replace(sc.time, t_end=steps * sc.time.dt), checkpoint_every=every,
+                   vtu_every=0)
+
+
+def _k_of(path):
+    """The step of the checkpoint file ``path`` (from its header only)."""
+    from skfem_granular.io import plain
+
+    header, _ = plain.read(path)
+    return header["content"]["$dict"]["k"]
+
+
+def _append_rows(folder, source, k, n):
+    """Rows ``k + 1 .. k + n`` of ``source`` appended to ``folder``'s history, as a run killed
+    after its checkpoint at ``k`` leaves them."""
+    lines = (source / "history.csv").read_text().splitlines(keepends=True)
+    with open(folder / "history.csv", "a") as f:
+        f.write("".join(lines[k + 1:k + 1 + n]))
+
+
+def test_checkpoints_of_a_long_run_keep_their_size_and_resume_byte_for_byte(tmp_path):
+    """2010 steps, a checkpoint every 50: every checkpoint the same size within 1 % (measured
+    15,616-15,717 B, the difference the contact springs; version 3's grew from 47,186 B at
+    step 50 to 1,248,519 B at step 2000), the one before always kept as checkpoint.prev.npz,
+    and the run resumed from its checkpoints at steps 500, 1250 and 2000 (copies of the
+    folder made then, with rows written after the checkpoint as a killed run leaves them)
+    gives the straight run's history.csv byte for byte and its summary numbers."""
+    import json
+    import shutil
+    from contextlib import closing
+
+    straight = tmp_path / "straight"
+    sim = Simulation(_heap(2010), output_dir=straight)
+    sizes = {}
+    with closing(sim.evolve()) as steps:
+        for k, _ in enumerate(steps, start=1):
+            if k % 50 == 0:
+                sizes[k] = (straight / "checkpoint.npz").stat().st_size
+                if k > 50:
+                    assert _k_of(straight / "checkpoint.prev.npz") == k - 50
+                if k in (500, 1250, 2000):
+                    shutil.copytree(straight, tmp_path / f"at{k}")
+    assert len(sizes) == 40 and sim.dem.contact_count().sum() > 0
+    assert max(sizes.values()) <= 1.01 * min(sizes.values()), sizes
+    ref = json.loads((straight / "summary.json").read_text())
+    for k in (500, 1250, 2000):
+        folder = tmp_path / f"at{k}"
+        _append_rows(folder, straight, k, 7)
+        res = Simulation.resume(folder).run(progress=False)
+        assert ((folder / "history.csv").read_bytes()
+                == (straight / "history.csv").read_bytes()), k
+        s = res.summary
+        assert (s["steps"], s["t_end"], s["final"]) == (ref["steps"], ref["t_end"],
+                                                        ref["final"]), k
+        assert not s["warnings"]
+
+
+def test_history_changed_before_the_checkpoints_is_refused_in_one_line(tmp_path, capsys):
+    """A digit changed in a row before both checkpoints: resuming is refused with one line
+    naming history.csv (exit 2), the folder unchanged. Changed in a row after the previous
+    checkpoint: the newest is refused and the run resumes from the previous one, byte for
+    byte the straight run."""
+    from skfem_granular.cli import main
+
+    straight = tmp_path / "straight"
+    Simulation(_heap(300), output_dir=straight).run(progress=False)
+    text = (straight / "history.csv").read_text()
+    for row, column in ((10, 7), (270, 9)):
+        folder = tmp_path / f"row{row}"
+        folder.mkdir()
+        for name in ("checkpoint.npz", "checkpoint.prev.npz"):
+            (folder / name).write_bytes((straight / name).read_bytes())
+        lines = text.splitlines(keepends=True)
+        vals = lines[row].split(",")
+        vals[column] = vals[column].replace("1", "2", 1) if "1" in vals[column] else "1"
+        lines[row] = ",".join(vals)
+        (folder / "history.csv").write_text("".join(lines))
+        capsys.readouterr()
+        if row == 10:
+            before = {p.name: p.read_bytes() for p in folder.iterdir()}
+            assert main(["run", "--resume", str(folder), "--no-progress"]) == 2
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1, err
+            assert "history.csv'" in err[0] and "rows 1-299 are not the ones" in err[0]
+            assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+        else:
+            assert main(["run", "--resume", str(folder), "--no-progress"]) == 0
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1 and err[0].startswith("skfem-granular: warning: "), err
+            assert "rows 1-299 are not the ones" in err[0]
+            assert err[0].endswith("resuming from checkpoint.prev.npz (step 250)")
+            assert (folder / "history.csv").read_text() == text
+
+
+def test_corrupt_newest_checkpoint_falls_back_to_the_previous(tmp_path, capsys):
+    """checkpoint.npz cut short (a disk error, say): the run resumes from checkpoint.prev.npz
+    with one line of warning (also in the summary), byte for byte the straight run; the
+    checkpoint it resumed from becomes the newest, so the ring is good again."""
+    straight = tmp_path / "straight"
+    Simulation(_heap(300), output_dir=straight).run(progress=False)
+    part = tmp_path / "part"
+    Simulation(_heap(280), output_dir=part).run(progress=False)  # checkpoints 250, 200
+    blob = (part / "checkpoint.npz").read_bytes()
+    (part / "checkpoint.npz").write_bytes(blob[:len(blob) // 2])
+    capsys.readouterr()
+    sim = Simulation.resume(part, t_end=300 * 2e-4)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "checkpoint.npz'" in err[0] and "not a readable file" in err[0]
+    assert err[0].endswith("resuming from checkpoint.prev.npz (step 200)")
+    assert sim.steps_done == 200
+    res = sim.run(progress=False)
+    assert (part / "history.csv").read_bytes() == (straight / "history.csv").read_bytes()
+    assert len(res.summary["warnings"]) == 1
+    assert _k_of(part / "checkpoint.npz") == 300 and _k_of(part / "checkpoint.prev.npz") == 250
+    # both unusable: the newest's reason, in one line
+    (part / "checkpoint.prev.npz").write_bytes(b"PK not a zip")
+    (part / "checkpoint.npz").write_bytes(b"")
+    with pytest.raises(ValueError, match=r"checkpoint.npz'.*not a readable file"):
+        Simulation.resume(part)
+
+
+def test_only_the_previous_checkpoint_left(tmp_path, capsys):
+    """No checkpoint.npz (removed by hand): the previous one is used, and says so."""
+    part = tmp_path / "part"
+    Simulation(_heap(120), output_dir=part).run(progress=False)  # checkpoints 50, 100
+    (part / "checkpoint.npz").unlink()
+    capsys.readouterr()
+    sim = Simulation.resume(part)
+    assert sim.steps_done == 50
+    assert "no checkpoint.npz" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("links", [True, False])
+def test_kept_file_is_complete_at_every_moment(tmp_path, monkeypatch, links):
+    """atomic_write(..., keep=...): the old file becomes the kept one only once the new one
+    is complete (a failed write changes neither); without hard links, a copy."""
+    import errno
+    import os
+
+    from skfem_granular.io import atomic_write, partial_files
+
+    if not links:
+        def no_link(*args, **kwargs):
+            raise OSError(errno.EPERM, "no links here")
+        monkeypatch.setattr(os, "link", no_link)
+    path, kept = tmp_path / "c.npz", tmp_path / "c.prev.npz"
+    atomic_write(path, lambda tmp: Path(tmp).write_text("one"), keep=kept)
+    assert path.read_text() == "one" and not kept.exists()
+    atomic_write(path, lambda tmp: Path(tmp).write_text("two"), keep=kept, fsync=True)
+    assert (path.read_text(), kept.read_text()) == ("two", "one")
+
+    def fail(tmp):
+        Path(tmp).write_text("thr")
+        raise OSError(errno.ENOSPC, "full")
+
+    with pytest.raises(OSError):
+        atomic_write(path, fail, keep=kept)
+    assert (path.read_text(), kept.read_text()) == ("two", "one")
+    atomic_write(path, lambda tmp: Path(tmp).write_text("three"), keep=kept)
+    assert (path.read_text(), kept.read_text()) == ("three", "two")
+    assert not partial_files(tmp_path)

@@ -42,7 +42,8 @@ from skfem_granular.simulation import Simulation, checkpoint
 SEED = 16
 SINGLE = ["single-particle", "--t-end", "3e-4", "--vtu-every", "2", "--checkpoint-every", "5"]
 LOCK = ".skfem-granular.lock"  # a killed run leaves its lock; the next run takes it over
-KNOWN = {"history.csv", "summary.json", "checkpoint.npz", "flow.pvd", "particles.pvd", LOCK}
+KNOWN = {"history.csv", "summary.json", "checkpoint.npz", "checkpoint.prev.npz", "flow.pvd",
+         "particles.pvd", LOCK}
 FLOOR_TOML = """\
 # two hexagons dropped onto the floor: contacts and remeshing
 [domain]

@@ -13,6 +13,7 @@ from .files import (
     atomic_path,
     atomic_write,
     check_writable,
+    keep_previous,
     partial_files,
     remove_partial_files,
     save_figure,
@@ -24,5 +25,5 @@ from .vtu import write_vtu
 
 __all__ = ["PARTIAL_PREFIX", "CSVLog", "History", "PVDSeries", "Table", "atomic_path",
            "atomic_write",
-           "check_writable", "partial_files", "plain", "read_csv", "read_pvd",
+           "check_writable", "keep_previous", "partial_files", "plain", "read_csv", "read_pvd",
            "remove_partial_files", "save_figure", "write_text", "write_vtu"]

@@ -5,18 +5,26 @@ renamed onto its final name (an atomic operation on POSIX file systems). The
 temporary names start with :data:`PARTIAL_PREFIX` (``.partial-``): a run
 killed while writing leaves at most such a hidden file next to the complete
 ones, and :func:`remove_partial_files` (called when a run resumes) deletes it.
+A file may keep its previous version under a second name (``keep``,
+:func:`keep_previous`: a checkpoint and the one before it).
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import os
+import secrets
+import shutil
 import tempfile
 from pathlib import Path
 
 #: Prefix of the temporary files :func:`atomic_path` renames onto their final names.
 PARTIAL_PREFIX = ".partial-"
+#: errno values of file systems that cannot make hard links (a copy is made instead).
+_NO_LINKS = {errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.ENOSYS, errno.EMLINK,
+             errno.EXDEV}
 
 
 def check_writable(path, *, create: bool = True) -> None:
@@ -61,7 +69,7 @@ def _umask() -> int:
 
 
 @contextlib.contextmanager
-def atomic_path(path, *, fsync: bool = False):
+def atomic_path(path, *, fsync: bool = False, keep=None):
     """A temporary file next to ``path``, renamed onto ``path`` when the block succeeds.
 
     The ``with`` block writes the whole file to the yielded name (a hidden
@@ -77,6 +85,11 @@ def atomic_path(path, *, fsync: bool = False):
         Also force the file's data to the disk before the rename (and the
         directory entry after it), so that the file survives a power failure
         too, not only a killed process.
+    keep : str or Path, optional
+        Keep the file ``path`` held until now under this name (in the same
+        directory), replacing what ``keep`` held: once the new file is complete
+        (and synced), before it is renamed onto ``path`` (:func:`keep_previous`).
+        At every moment ``path`` names a complete file.
 
     Yields
     ------
@@ -103,6 +116,8 @@ def atomic_path(path, *, fsync: bool = False):
         os.chmod(tmp, 0o666 & ~_umask())
         if fsync:
             _fsync_path(tmp)
+        if keep is not None:
+            keep_previous(path, keep, fsync=fsync)
         os.replace(tmp, path)
         if fsync:
             _fsync_directory(path.parent)
@@ -111,7 +126,44 @@ def atomic_path(path, *, fsync: bool = False):
             os.unlink(tmp)
 
 
-def atomic_write(path, write, *, fsync: bool = False) -> Path:
+def keep_previous(path, keep, *, fsync: bool = False) -> bool:
+    """Make ``keep`` a second name of the file ``path`` (replacing ``keep``); whether one was.
+
+    ``keep`` gets a hard link to ``path`` under a temporary name first, renamed onto
+    ``keep``, so ``path`` stays as it was and ``keep`` is always complete (the old
+    ``keep`` or the new). Where hard links cannot be made, the file is copied (and
+    synced with ``fsync``) instead. Nothing happens when ``path`` does not exist.
+
+    Parameters
+    ----------
+    path, keep : str or Path
+        In the same directory.
+    fsync : bool, optional
+        Sync the directory (and a copy) to the disk.
+    """
+    path, keep = Path(path), Path(keep)
+    if not path.is_file():
+        return False
+    tmp = keep.parent / f"{PARTIAL_PREFIX}{keep.stem}-{secrets.token_hex(4)}{keep.suffix}"
+    try:
+        try:
+            os.link(path, tmp)
+        except OSError as exc:
+            if exc.errno not in _NO_LINKS:
+                raise
+            shutil.copyfile(path, tmp)
+            if fsync:
+                _fsync_path(tmp)
+        os.replace(tmp, keep)
+    finally:
+        if os.path.lexists(tmp):
+            os.unlink(tmp)
+    if fsync:
+        _fsync_directory(keep.parent)
+    return True
+
+
+def atomic_write(path, write, *, fsync: bool = False, keep=None) -> Path:
     """Call ``write(tmp_path)`` and rename the result onto ``path``.
 
     Parameters
@@ -120,7 +172,7 @@ def atomic_write(path, write, *, fsync: bool = False) -> Path:
         Final file name.
     write : callable
         ``write(tmp)`` writes the whole file to the path ``tmp`` (same suffix).
-    fsync : bool, optional
+    fsync, keep : optional
         As for :func:`atomic_path`.
 
     Returns
@@ -133,7 +185,7 @@ def atomic_write(path, write, *, fsync: bool = False) -> Path:
     When ``write`` raises, ``path`` keeps its earlier content (or stays
     absent) and no temporary file is left behind (:func:`atomic_path`).
     """
-    with atomic_path(path, fsync=fsync) as tmp:
+    with atomic_path(path, fsync=fsync, keep=keep) as tmp:
         write(tmp)
     return Path(path)
 

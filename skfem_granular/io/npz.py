@@ -38,8 +38,13 @@ def _member(name: str) -> zipfile.ZipInfo:
     return info
 
 
-def write(path, header: dict, arrays: dict[str, np.ndarray], *, fsync: bool = False) -> Path:
-    """Write ``header`` (JSON) and ``arrays`` (``.npy`` members) as one zip, atomically."""
+def write(path, header: dict, arrays: dict[str, np.ndarray], *, fsync: bool = False,
+          keep=None) -> Path:
+    """Write ``header`` (JSON) and ``arrays`` (``.npy`` members) as one zip, atomically.
+
+    ``fsync`` and ``keep`` (the file ``path`` held until now kept under that name, once
+    the new one is complete) as for :func:`~skfem_granular.io.files.atomic_path`.
+    """
     text = json.dumps(header, allow_nan=False, separators=(",", ":")).encode()
     for key, a in arrays.items():
         if a.dtype.name not in STORED_DTYPES:
@@ -52,7 +57,7 @@ def write(path, header: dict, arrays: dict[str, np.ndarray], *, fsync: bool = Fa
                 with zf.open(_member(f"{key}.npy"), "w", force_zip64=True) as f:
                     np.lib.format.write_array(f, np.asanyarray(a), allow_pickle=False)
 
-    return atomic_write(path, save, fsync=fsync)
+    return atomic_write(path, save, fsync=fsync, keep=keep)
 
 
 def read(path, *, where: str | None = None) -> tuple[dict, dict[str, np.ndarray]]:

@@ -11,6 +11,7 @@ appended, flushed to the disk on demand), the same text as
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 from typing import Any
@@ -79,6 +80,25 @@ class Table:
                 vals.extend(float(r[c][k]) for c in self.PARTICLE_COLUMNS)
             out.append(fmt % tuple(vals))
         return "".join(out)
+
+    def rows_from_wide(self, values: np.ndarray) -> list[dict[str, Any]]:
+        """Rows from values in the wide layout, ``(T, columns)``: :meth:`wide_lines` read back.
+
+        Step values become floats, particle values ``(K,)`` float arrays (what
+        :meth:`add_row` keeps); ``%.17g`` text read back gives the same doubles.
+        """
+        values = np.asarray(values, dtype=float)
+        S, P = len(self.STEP_COLUMNS), len(self.PARTICLE_COLUMNS)
+        if values.ndim != 2 or values.shape[1] != S + self.K * P:
+            raise ValueError(f"values of shape {values.shape}: must be (T, {S + self.K * P})")
+        part = values[:, S:].reshape(len(values), self.K, P)
+        rows = []
+        for i in range(len(values)):
+            row: dict[str, Any] = {c: float(values[i, j]) for j, c in enumerate(self.STEP_COLUMNS)}
+            for j, c in enumerate(self.PARTICLE_COLUMNS):
+                row[c] = part[i, :, j].copy()
+            rows.append(row)
+        return rows
 
     def to_csv(self, path, layout: str = "wide") -> None:
         """Write the table atomically, every number to full precision (``%.17g``).
@@ -184,7 +204,9 @@ class CSVLog:
     and forces them to the disk (``flush`` + ``os.fsync``). A process killed
     at any moment leaves a file whose complete lines are the rows up to the
     last flush (:func:`read_csv` drops a torn last line, should a kill land
-    inside an append).
+    inside an append). The SHA-256 of the bytes written is kept as they are
+    written (:meth:`digest`), so a checkpoint names the rows it follows
+    without reading the file back.
 
     Parameters
     ----------
@@ -203,10 +225,42 @@ class CSVLog:
     def __init__(self, table: Table, path):
         self.table = table
         self.path = Path(path)
-        self.written = len(table.rows)
-        text = ",".join(table.wide_header()) + "\n" + table.wide_lines(0, self.written)
-        atomic_write(self.path, lambda tmp: Path(tmp).write_text(text))
+        n = len(table.rows)
+        head = (",".join(table.wide_header()) + "\n").encode()
+        self._sha = hashlib.sha256(head)
+        self._sha_before_last = self._sha.copy()
+        body, last = self._lines(0, n)
+        atomic_write(self.path, lambda tmp: Path(tmp).write_bytes(head + body + last))
+        self._written(n, body, last)
         self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+
+    def _lines(self, start: int, stop: int) -> tuple[bytes, bytes]:
+        """Rows ``start:stop - 1`` and row ``stop - 1`` as bytes (empty if none)."""
+        if stop <= start:
+            return b"", b""
+        return (self.table.wide_lines(start, stop - 1).encode(),
+                self.table.wide_lines(stop - 1, stop).encode())
+
+    def _written(self, n: int, body: bytes, last: bytes) -> None:
+        """``body`` and ``last`` are in the file now, which holds ``n`` rows."""
+        if last:
+            self._sha.update(body)
+            self._sha_before_last = self._sha.copy()
+            self._sha.update(last)
+        self.written = n
+
+    def digest(self, rows: int) -> str:
+        """SHA-256 (hex) of the file's bytes from its start to the end of row ``rows``.
+
+        The header line and the first ``rows`` rows, as written; ``rows`` is the
+        number of rows written or one fewer.
+        """
+        if rows == self.written:
+            return self._sha.hexdigest()
+        if rows == self.written - 1 and rows >= 0:
+            return self._sha_before_last.hexdigest()
+        raise ValueError(f"rows = {rows}: the digest is kept for {self.written} or "
+                         f"{self.written - 1} rows (the rows written)")
 
     @property
     def closed(self) -> bool:
@@ -218,11 +272,11 @@ class CSVLog:
             raise ValueError(f"{str(self.path)!r}: the CSV log is closed")
         n = len(self.table.rows)
         if n > self.written:
-            data = self.table.wide_lines(self.written, n).encode()
-            view = memoryview(data)
+            body, last = self._lines(self.written, n)
+            view = memoryview(body + last)
             while view:
                 view = view[os.write(self._fd, view):]
-            self.written = n
+            self._written(n, body, last)
         os.fsync(self._fd)
         return n
 

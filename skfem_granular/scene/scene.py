@@ -67,8 +67,9 @@ class Scene:
         Write the flow and outlines every this many steps (0: only the last).
     checkpoint_every : int
         Write ``checkpoint.npz`` (plain data, the whole state: both BDF2
-        histories, DEM contact history, mesh, history rows) every this many
-        steps; 0: never (SIGINT/SIGTERM still write one).
+        histories, DEM contact history, mesh; the history rows stay in
+        ``history.csv``, the one before kept as ``checkpoint.prev.npz``) every
+        this many steps; 0: never (SIGINT/SIGTERM still write one).
         ``Simulation.resume(directory)`` continues from it.
     name : str
     overlap_tolerance : float

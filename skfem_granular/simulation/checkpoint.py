@@ -4,16 +4,39 @@ A checkpoint holds everything the next step depends on: the scene, the step
 count, the fluid state with *both* BDF2 histories (``u_n``, ``u_{n-1}``) and
 the particle histories, the DEM state (positions, velocities, BDF2 history,
 contact springs), the mesh with its meshing recipe and the reference
-positions of the particles on it, the step controller's state, the history
-rows, the counters and the frames written so far. The stepper hands over its
-state (``checkpoint_state``) and is rebuilt from it on resume; it refactorises
-at each checkpoint too, so a run resumed from a checkpoint reproduces the run
+positions of the particles on it, the step controller's state, the counters
+and the frames written so far. The stepper hands over its state
+(``checkpoint_state``) and is rebuilt from it on resume; it refactorises at
+each checkpoint too, so a run resumed from a checkpoint reproduces the run
 that wrote it bit for bit (tested, also after a SIGKILL at a random moment).
 
-The file, ``checkpoint.npz``, is plain data (:mod:`skfem_granular.io.plain`):
-a zip of ``.npy`` arrays (float64, int64 or bool) and ``header.json`` (format
-name and version, every other value, the type of every object), written
-atomically and synced to the disk. Open it with ``numpy.load(path,
+The history rows stay in ``history.csv``, which holds them anyway (appended
+and synced before every checkpoint): a checkpoint records how many rows it
+follows, the SHA-256 of the file's bytes up to the row before its last
+(header line included) and that last row itself, so its size and the time to
+write it do not grow with the run. Resuming reads the rows back from
+``history.csv`` (``%.17g`` text: the same doubles), refuses a file that is
+shorter or whose bytes differ (one line naming the file), and the resumed
+run rewrites the file to the checkpoint's rows. The last row is kept in the
+checkpoint because a run resumed past the end of the run it continues gives
+that row the time of its clock (``Simulation._continue_clock``), so the
+file's copy of it may differ in ``t``.
+
+Checkpoints form a ring of two: ``checkpoint.npz`` (the newest) and
+``checkpoint.prev.npz`` (the one before it). A new checkpoint is written to a
+temporary file and synced; only then is the newest kept as the previous one
+(a hard link, renamed; a copy where links cannot be made) and the new file
+renamed onto ``checkpoint.npz``, so ``checkpoint.npz`` always names a
+complete checkpoint and the last good one is never removed before the new
+one is whole. :func:`load` reads the newest and, when it cannot be read or
+does not fit ``history.csv``, the previous one, with a one-line warning
+naming the reason; a run resumed from the previous one makes it the newest
+again (:func:`promote`) when it starts writing.
+
+The file is plain data (:mod:`skfem_granular.io.plain`): a zip of ``.npy``
+arrays (float64, int64 or bool) and ``header.json`` (format name and
+version, every other value, the type of every object), written atomically
+and synced to the disk. Open it with ``numpy.load(path,
 allow_pickle=False)`` (arrays by field path, e.g. ``"stepper.state.u_n"``)
 or ``unzip -p checkpoint.npz header.json``. Reading it runs no code from the
 file: objects are rebuilt only for an allowlisted set of types
@@ -24,13 +47,17 @@ particle arrays against the number of particles), every float must be finite
 except the history's and the error estimate's, and unknown versions, keys,
 fields or arrays are refused, each with one line naming the field.
 
-Versions 1 and 2 were ``checkpoint.pkl`` files; they are refused, never read
-(loading such a file can run arbitrary code): no pickle is used anywhere.
+Version 4 keeps the history in ``history.csv``; version 3 (the whole history
+in the checkpoint) is still read. Versions 1 and 2 were ``checkpoint.pkl``
+files; they are refused, never read (loading such a file can run arbitrary
+code): no pickle is used anywhere.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import io
 import re
 from pathlib import Path
 
@@ -44,17 +71,26 @@ from ..coupled.state import CoupledState
 from ..coupled.wake import WakeGrading
 from ..dem import ContactLaw, Polygon, PrescribedMotion
 from ..fluid.properties import Fluid
-from ..io import History, plain
+from ..io import History, keep_previous, plain
 from ..scene import Effects, MeshSpec, ParticleSpec, Scene, TimeSpec
 
 FORMAT = "skfem-granular checkpoint"
-#: The format version written and the only one read (1 and 2, pickle files, are not read).
-VERSION = 3
+#: The format version written: the history stays in ``history.csv``.
+VERSION = 4
+#: The versions read: 3 held the whole history (1 and 2, pickle files, are not read).
+READ_VERSIONS = (3, 4)
+#: The newest checkpoint.
 FILENAME = "checkpoint.npz"
+#: The checkpoint before the newest (the ring's other file).
+PREVIOUS_FILENAME = "checkpoint.prev.npz"
+#: The history file whose rows a checkpoint follows.
+HISTORY_FILENAME = "history.csv"
 #: The pickle checkpoints of earlier versions: refused, never unpickled.
 LEGACY_FILENAME = "checkpoint.pkl"
 
 HEADER_KEYS = {"format", "version", "written_by", "content"}
+#: A checkpoint's content (``history``: version 3 the rows, version 4 how many, their
+#: digest and the last).
 CONTENT_KEYS = {"scene", "k", "dem", "stepper", "history", "frames"}
 
 
@@ -128,21 +164,44 @@ def _nonfinite_ok(path: str) -> bool:
 
 
 # ---------------------------------------------------------------------- history
-def _history_columns(hist: History) -> dict:
-    """The history as arrays: step columns ``(T,)``, particle columns ``(T, K)``."""
-    rows, K = hist.rows, hist.K
-    step = {}
-    for c in hist.STEP_COLUMNS:
-        vals = [r.get(c, np.nan) for r in rows]
-        ints = vals and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool)
-                            for v in vals)
-        step[c] = np.array(vals, dtype=np.int64 if ints else np.float64).reshape(len(rows))
-    part = {c: np.array([r[c] for r in rows], dtype=float).reshape(len(rows), K)
-            for c in hist.PARTICLE_COLUMNS}
-    return {"particles": K, "step": step, "particle": part}
+def _step_value(v):
+    """A step column's value as the row held it: an int stays an int, the rest floats."""
+    if isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)):
+        return int(v)
+    return float(v)
+
+
+def _last_row(hist: History, k: int) -> dict | None:
+    """Row ``k`` (the last a checkpoint after step ``k`` follows), or None for ``k = 0``."""
+    if k == 0:
+        return None
+    r = hist.rows[k - 1]
+    return {"step": {c: _step_value(r.get(c, np.nan)) for c in hist.STEP_COLUMNS},
+            "particle": {c: np.array(r[c], dtype=float).reshape(hist.K)
+                         for c in hist.PARTICLE_COLUMNS}}
+
+
+def _history_digest(sim, k: int) -> str:
+    """SHA-256 of ``history.csv`` from its start to the end of row ``k - 1``.
+
+    Taken from the run's live history file (:class:`~skfem_granular.io.CSVLog`,
+    flushed first if it lags), which keeps the digest as it writes; with no live
+    file (a checkpoint written after the run), from the rows as that file holds them.
+    """
+    rows = max(k - 1, 0)
+    log = getattr(getattr(sim, "_output", None), "log", None)
+    if log is not None and not log.closed:
+        if log.written < k:
+            log.flush()
+        if log.written == k:
+            return log.digest(rows)
+    hist = sim.history
+    text = ",".join(hist.wide_header()) + "\n" + hist.wide_lines(0, rows)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _history_rows(d, where: str, n_particles: int) -> list:
+    """The rows of a version 3 checkpoint, which held them all."""
     def fail(path, problem):
         raise ValueError(f"{where}: {path}: {problem}")
 
@@ -188,19 +247,126 @@ def _history_rows(d, where: str, n_particles: int) -> list:
     return rows
 
 
+_SHA256 = re.compile(r"^[0-9a-f]{64}$")
+
+
+def _check_history(d, where: str, K: int) -> None:
+    """A version 4 checkpoint's history entry: the rows it follows, their digest, the last."""
+    if not isinstance(d, dict) or set(d) != {"rows", "sha256", "last"}:
+        _fail(where, "history", "must hold 'rows', 'sha256' and 'last' (and nothing else)")
+    _check_count(where, "history.rows", d["rows"])
+    if not (isinstance(d["sha256"], str) and _SHA256.match(d["sha256"])):
+        _fail(where, "history.sha256", "must be 64 hexadecimal digits (lower case)")
+    last = d["last"]
+    if d["rows"] == 0 or last is None:
+        if not (d["rows"] == 0 and last is None):
+            _fail(where, "history.last", "must be None exactly when history.rows is 0")
+        return
+    if not isinstance(last, dict) or set(last) != {"step", "particle"}:
+        _fail(where, "history.last", "must hold 'step' and 'particle' (and nothing else)")
+    for name, cols in (("step", History.STEP_COLUMNS), ("particle", History.PARTICLE_COLUMNS)):
+        got = last[name]
+        if not isinstance(got, dict) or set(got) != set(cols):
+            _fail(where, f"history.last.{name}", f"must hold the columns {', '.join(cols)}")
+    for c, v in last["step"].items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            _fail(where, f"history.last.step.{c}", f"= {v!r}: must be a number")
+    if not np.isfinite(last["step"]["t"]):
+        _fail(where, "history.last.step.t", "must be a finite number")
+    for c, a in last["particle"].items():
+        _check_array(where, f"history.last.particle.{c}", a, (K,))
+
+
+def _history_from_file(directory: Path, d: dict, K: int, where: str) -> list:
+    """The rows a version 4 checkpoint follows, read back from ``history.csv`` and checked.
+
+    The file must hold at least ``d["rows"]`` complete rows, its bytes up to the row
+    before the last must have the checkpoint's SHA-256, and that last row must be the
+    checkpoint's copy but for its time (see the module notes); the checkpoint's copy
+    is the one used.
+    """
+    path = directory / HISTORY_FILENAME
+    name = f"history {str(path)!r}"
+    k = d["rows"]
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise ValueError(f"{name}: not found ({where} keeps its {k} rows there)") from None
+    except OSError as exc:
+        raise ValueError(f"{name}: cannot be read ({exc.strerror})") from None
+    hist = History(K)
+    head = (",".join(hist.wide_header()) + "\n").encode()
+    if not raw.startswith(head):
+        raise ValueError(f"{name}: its header line is not the one of {where} (the columns "
+                         f"of a run of K = {K} particles)")
+    if k == 0:
+        return []
+    ends = [len(head) - 1]  # where the header line and each row end
+    while len(ends) <= k:
+        pos = raw.find(b"\n", ends[-1] + 1)
+        if pos < 0:
+            raise ValueError(f"{name}: {len(ends) - 1} complete rows, fewer than the {k} "
+                             f"{where} follows (the file was cut short)")
+        ends.append(pos)
+    cut = ends[k - 1] + 1
+    sha = hashlib.sha256(memoryview(raw)[:cut]).hexdigest()
+    if sha != d["sha256"]:
+        what = ("header line" if k == 1 else "header and row 1" if k == 2
+                else f"header and rows 1-{k - 1}")
+        raise ValueError(f"{name}: the bytes of its {what} are not the ones {where} follows "
+                         f"(SHA-256 {sha[:16]}..., the checkpoint's {d['sha256'][:16]}...): "
+                         "the file was changed")
+    last = dict(d["last"]["step"])
+    last.update({c: a.copy() for c, a in d["last"]["particle"].items()})
+    hist.rows = [last]
+    mine = hist.wide_lines().rstrip("\n").encode().split(b",")
+    theirs = raw[cut:ends[k]].split(b",")
+    if theirs[1:] != mine[1:]:  # the time may have moved to a resumed run's clock
+        raise ValueError(f"{name}: row {k} is not the last row {where} follows (values other "
+                         "than t differ): the file was changed")
+    values = np.zeros((0, len(mine)))
+    if k > 1:
+        try:
+            values = np.loadtxt(io.StringIO(raw[len(head):cut].decode()), delimiter=",",
+                                dtype=np.float64, ndmin=2)
+        except ValueError as exc:
+            raise ValueError(f"{name}: rows 1-{k - 1}: not a table of numbers "
+                             f"({' '.join(str(exc).split())})") from None
+    rows = hist.rows_from_wide(values)
+    for c, v in d["last"]["step"].items():  # ints stay ints (the iteration counts)
+        if isinstance(v, int):
+            for r in rows:
+                if float(r[c]).is_integer():
+                    r[c] = int(r[c])
+    rows.append(last)
+    return rows
+
+
 # ---------------------------------------------------------------------- write
 def save(sim, k: int, series) -> Path:
     """Write ``checkpoint.npz`` into the simulation's output directory after step ``k``.
 
-    The history CSV is the caller's (:class:`~skfem_granular.simulation.Simulation`
-    flushes it at every checkpoint).
+    The history rows stay in ``history.csv`` (the run's live file, synced here if
+    it lags behind; :class:`~skfem_granular.simulation.Simulation` syncs it at every
+    checkpoint); the checkpoint keeps their number, their digest and the last row.
+    The checkpoint written before (if any) is kept as ``checkpoint.prev.npz`` once
+    the new one is complete.
+
+    Raises
+    ------
+    ValueError
+        When the history does not have ``k`` rows.
     """
+    if len(sim.history) != k:
+        raise ValueError(f"k = {k}: the history has {len(sim.history)} rows (a checkpoint "
+                         "follows all of them)")
     content = {
         "scene": sim.scene,
         "k": int(k),
         "dem": sim.dem.save_state(),
         "stepper": sim.stepper.checkpoint_state(),
-        "history": _history_columns(sim.history),
+        "history": {"rows": int(k), "sha256": _history_digest(sim, k),
+                    "last": _last_row(sim.history, k)},
         "frames": {name: [(float(t), str(f)) for t, f in s.frames]
                    for name, s in (series or {}).items() if s is not None},
     }
@@ -211,20 +377,38 @@ def save(sim, k: int, series) -> Path:
     node, arrays = plain.encode(content, REGISTRY)
     header = {"format": FORMAT, "version": VERSION, "written_by": f"skfem-granular {__version__}",
               "content": node}
-    return plain.write(Path(sim.output_dir) / FILENAME, header, arrays, fsync=True)
+    out = Path(sim.output_dir)
+    return plain.write(out / FILENAME, header, arrays, fsync=True, keep=out / PREVIOUS_FILENAME)
+
+
+def promote(directory, path) -> bool:
+    """Make the checkpoint at ``path`` the newest (``checkpoint.npz``) too; whether it changed.
+
+    A run resumed from ``checkpoint.prev.npz`` (the newest could not be used) calls it
+    when it rewrites the history, so that its next checkpoint keeps a good one as the
+    previous.
+    """
+    d, path = Path(directory), Path(path)
+    if path.name == FILENAME:
+        return False
+    return keep_previous(path, d / FILENAME, fsync=True)
 
 
 # ---------------------------------------------------------------------- read
 def load(directory) -> dict:
-    """Read and validate the checkpoint in ``directory``.
+    """Read and validate the newest usable checkpoint in ``directory``, with its history.
+
+    ``checkpoint.npz`` is read; when it is absent, cannot be read or does not fit
+    ``history.csv``, ``checkpoint.prev.npz`` is (and ``warning`` says why).
 
     Returns
     -------
     dict
         ``scene`` (a validated :class:`~skfem_granular.scene.Scene`), ``k`` (steps
         done), ``dem`` (:meth:`DEMSystem.save_state` dict), ``stepper``
-        (``checkpoint_state()`` dict), ``history`` (the rows), ``frames``
-        (``{series: [(t, file), ...]}``).
+        (``checkpoint_state()`` dict), ``history`` (the rows, read back from
+        ``history.csv``), ``frames`` (``{series: [(t, file), ...]}``), ``path`` (the
+        file read), ``version`` and ``warning`` (one line, or None).
 
     Raises
     ------
@@ -232,17 +416,40 @@ def load(directory) -> dict:
         One line naming the file and the field: no checkpoint, a pickle
         checkpoint of an earlier version, a file of another format or version,
         unknown or missing keys, fields or arrays, wrong dtypes or shapes,
-        NaN/inf, values a scene would refuse.
+        NaN/inf, values a scene would refuse; a history file that is missing,
+        shorter than the checkpoint's rows or changed. When both checkpoints
+        fail, the newest's reason.
     """
     d = Path(directory)
-    path = d / FILENAME
-    if not path.is_file():
+    newest, previous = d / FILENAME, d / PREVIOUS_FILENAME
+    if not newest.is_file() and not previous.is_file():
         if (d / LEGACY_FILENAME).is_file():
             raise ValueError(f"resume: {str(d / LEGACY_FILENAME)!r}: a pickle file, not loaded "
                              "(a checkpoint of an earlier version; loading it could run code "
                              "from the file): run again with this version to get a "
                              "checkpoint.npz")
         raise ValueError(f"resume: no {FILENAME} in {str(directory)!r} ({_why_none(d)})")
+    if not newest.is_file():
+        data = _load(previous)
+        data["warning"] = (f"resume: no {FILENAME} in {str(d)!r}: resuming from "
+                           f"{PREVIOUS_FILENAME} (step {data['k']})")
+        return data
+    try:
+        return _load(newest)
+    except ValueError as exc:
+        if not previous.is_file():
+            raise
+        try:
+            data = _load(previous)
+        except ValueError:
+            raise exc from None
+        reason = " ".join(str(exc).split())
+        data["warning"] = f"{reason}; resuming from {PREVIOUS_FILENAME} (step {data['k']})"
+        return data
+
+
+def _load(path: Path) -> dict:
+    """One checkpoint file, validated, with its history rows."""
     where = f"checkpoint {str(path)!r}"
     header, arrays = plain.read(path, where=where)
     extra = sorted(set(header) - HEADER_KEYS)
@@ -251,9 +458,10 @@ def load(directory) -> dict:
     if header.get("format") != FORMAT:
         raise ValueError(f"{where}: format = {header.get('format')!r}: not a {FORMAT!r} file")
     version = header.get("version")
-    if version != VERSION or isinstance(version, bool):
+    if version not in READ_VERSIONS or isinstance(version, bool):
         raise ValueError(f"{where}: version = {version!r}: this version of skfem-granular "
-                         f"reads checkpoint version {VERSION} only")
+                         f"reads checkpoint versions {' and '.join(map(str, READ_VERSIONS))} "
+                         "only")
     missing = sorted(HEADER_KEYS - set(header))
     if missing:
         raise ValueError(f"{where}: header: missing key {missing[0]!r}")
@@ -271,8 +479,16 @@ def load(directory) -> dict:
     if not isinstance(scene, Scene):
         raise ValueError(f"{where}: scene: must be a Scene, got {type(scene).__name__}")
     K = len(scene.particles)
-    data["history"] = _history_rows(data["history"], where, K)
-    _check(data, where, K)
+    if version == 3:
+        data["history"] = _history_rows(data["history"], where, K)
+        rows = len(data["history"])
+    else:
+        _check_history(data["history"], where, K)
+        rows = data["history"]["rows"]
+    _check(data, where, K, rows)
+    if version != 3:  # last: the file is read only once the checkpoint itself is good
+        data["history"] = _history_from_file(path.parent, data["history"], K, where)
+    data.update(path=path, version=version, warning=None)
     return data
 
 
@@ -320,12 +536,11 @@ def _check_time(where, path, v, *, none=False):
         _fail(where, path, f"= {v!r}: must be a finite number >= 0")
 
 
-def _check(data, where, K):
+def _check(data, where, K, rows):
     """Shapes and ranges of the fields this version knows (fields it does not know pass)."""
     _check_count(where, "k", data["k"])
-    if data["k"] != len(data["history"]):
-        _fail(where, "k", f"= {data['k']}: must equal the number of history rows "
-                          f"({len(data['history'])})")
+    if data["k"] != rows:
+        _fail(where, "k", f"= {data['k']}: must equal the number of history rows ({rows})")
     _check_dem(data["dem"], where, K)
     _check_stepper(data["stepper"], where, K)
     _check_frames(data["frames"], where)

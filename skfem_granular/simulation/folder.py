@@ -1,7 +1,8 @@
 """An output folder belongs to one run.
 
-A run writes ``history.csv``, ``summary.json``, ``checkpoint.npz``, the PVD
-indices and their VTU frames into its output folder. Before it writes
+A run writes ``history.csv``, ``summary.json``, ``checkpoint.npz`` (and the
+one before it, ``checkpoint.prev.npz``), the PVD indices and their VTU frames
+into its output folder. Before it writes
 anything, :class:`OutputFolder` makes sure that the folder holds no other
 run's files (:func:`run_files`), unless the run was told to replace them
 (``overwrite``: the old run's files are removed first) or to continue them
@@ -41,8 +42,8 @@ from ..io import remove_partial_files
 #: The lock file a running simulation (or study) keeps in its output folder.
 LOCK_NAME = ".skfem-granular.lock"
 #: Files of a run (besides its frames, :data:`FRAME_PATTERN`).
-RUN_FILE_NAMES = ("history.csv", "summary.json", "checkpoint.npz", "checkpoint.pkl",
-                  "flow.pvd", "particles.pvd")
+RUN_FILE_NAMES = ("history.csv", "summary.json", "checkpoint.npz", "checkpoint.prev.npz",
+                  "checkpoint.pkl", "flow.pvd", "particles.pvd")
 #: The VTU frames a run writes.
 FRAME_PATTERN = re.compile(r"^(flow|particles)_\d{5}\.vtu$")
 #: The file that marks a study's folder (:mod:`skfem_granular.studies`), and its format.

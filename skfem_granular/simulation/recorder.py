@@ -32,11 +32,14 @@ class RunOutput:
         Whose critical sections guard the writes.
     frames : dict, optional
         ``{series: [(t, file), ...]}``: the frames a resumed run wrote before.
+    resumed_from : Path, optional
+        The checkpoint file a resumed run was read from.
     """
 
-    def __init__(self, sim, signals, frames=None):
+    def __init__(self, sim, signals, frames=None, resumed_from=None):
         self.sim = sim
         self.frames = frames or {}
+        self.resumed_from = resumed_from
         self.signals = signals
         self.dir = sim.output_dir
         self.series = None
@@ -56,6 +59,10 @@ class RunOutput:
         # header and the rows so far (a resumed run's), then appends
         self.log = CSVLog(sim.history, self.dir / "history.csv")
         self._flushed = time.monotonic()
+        if self.resumed_from is not None:  # resumed from the previous checkpoint: the newest
+            from . import checkpoint
+
+            checkpoint.promote(self.dir, self.resumed_from)
 
     def record(self, step) -> None:
         """Append the history row of an accepted step (a ``StepReport``)."""
@@ -106,7 +113,7 @@ class RunOutput:
         self._timed(write)
 
     def checkpoint(self) -> None:
-        """History synced first, then the checkpoint: the file always has its rows."""
+        """History synced first, then the checkpoint (which follows the file's rows)."""
         if self.dir is None:
             return
         from . import checkpoint

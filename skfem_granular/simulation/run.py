@@ -15,6 +15,10 @@ history up to its last flush. When the loop ends, however it ends
 is complete and ``summary.json`` is written with the run's ``status``.
 :meth:`Simulation.run` drives that generator to the end.
 
+A checkpoint (:mod:`~skfem_granular.simulation.checkpoint`) follows the rows
+of ``history.csv`` instead of holding them, so its size does not grow with the
+run; the one before it is kept as ``checkpoint.prev.npz``.
+
 SIGINT and SIGTERM (in the main thread) stop a run at the end of the current
 step: the step is recorded, a checkpoint is written (so the run can be
 resumed, bit for bit), the history and the summary are written, and the
@@ -34,6 +38,7 @@ file refuses a second live run into the same folder.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field, replace
@@ -155,6 +160,8 @@ class Simulation:
         self.steps_done = 0
         self.result: SimulationResult | None = None
         self._resumed_frames: dict = {}
+        self._resumed_from: Path | None = None  # the checkpoint file a resumed run read
+        self._output: RunOutput | None = None  # while evolve() runs
         self.stepper: DryStepper | CoupledStepper
         if scene.dry:
             self.stepper = DryStepper(scene, self.dem, self.timings)
@@ -192,14 +199,18 @@ class Simulation:
             Ready to :meth:`run` from the checkpointed step; output continues
             in ``directory`` (``history.csv`` rewritten to the checkpoint's rows
             when the run starts, ``.partial-*`` left-overs of a killed run removed).
-            ``t_end`` may not be before the checkpoint's time.
+            ``t_end`` may not be before the checkpoint's time. The newest usable
+            checkpoint is taken: ``checkpoint.npz``, or ``checkpoint.prev.npz`` when
+            that one cannot be used (one line on stderr and in the summary's
+            ``warnings`` saying why).
 
         Raises
         ------
         ValueError
             One line naming the field, for a missing, foreign, older (pickle: not read) or
             inconsistent checkpoint (:func:`~skfem_granular.simulation.checkpoint.load`),
-            a ``t_end`` before the checkpoint's time, or a folder a live run holds.
+            a ``history.csv`` without the checkpoint's rows (shorter, or changed), a
+            ``t_end`` before the checkpoint's time, or a folder a live run holds.
         """
         from . import checkpoint
 
@@ -219,7 +230,7 @@ class Simulation:
                   budget=budget, terms=terms)
         sim.scene, sim.output_dir, sim.folder = scene, Path(directory), folder
         # the entries this version's stepper and DEM hand over, no more and no fewer
-        where = f"checkpoint {str(Path(directory) / checkpoint.FILENAME)!r}"
+        where = f"checkpoint {str(data['path'])!r}"
         checkpoint.check_entries(data["dem"], sim.dem.save_state(), "dem", where)
         checkpoint.check_entries(saved, sim.stepper.checkpoint_state(), "stepper", where)
         sim.dem.restore_state(data["dem"])
@@ -233,6 +244,10 @@ class Simulation:
         sim._continue_clock()
         sim.steps_done = data["k"]
         sim._resumed_frames = data["frames"]
+        sim._resumed_from = data["path"]
+        if data["warning"]:
+            sim.warnings.append(data["warning"])
+            print(f"skfem-granular: warning: {data['warning']}", file=sys.stderr)
         return sim
 
     def _continue_clock(self) -> None:
@@ -341,7 +356,8 @@ class Simulation:
         bar = self._progress_bar(progress)
         self.status, self.stopped_by, self.stopped_at_once = "running", None, False
         signals = StopSignals()
-        out = RunOutput(self, signals, self._resumed_frames)
+        out = RunOutput(self, signals, self._resumed_frames, self._resumed_from)
+        self._output = out
         try:
             with signals, threadpool_limits(limits=1, user_api="blas"):
                 try:
@@ -379,6 +395,7 @@ class Simulation:
                         bar.close()
                         self._wrap_up(out, t_start)
         finally:
+            self._output = None
             if self.folder is not None:
                 self.folder.release()
 
