@@ -105,8 +105,11 @@ class RigidParticles:
         names = [f"particle{k}" for k in range(self.K)]
         specs = dict(walls)
         specs.update({n: (0.0, 0.0) for n in names})
+        # the symmetric-gradient form whatever the boundaries: the consistent force and torque
+        # on a particle come from the residual tested with its rigid modes, and the Laplacian
+        # form's residual misses half of a rotating particle's viscous torque
         self.op = NavierStokesOperator(space, fluid, DirichletData(space, specs),
-                                       convection=convection, terms=terms)
+                                       convection=convection, viscous="symmetric", terms=terms)
         self.wall_dirichlet = DirichletData(space, walls) if walls else None
         self.particle_dofs = [space.boundary_dofs(n) for n in names]
         # every particle's DOFs at once, with their particle and component: the lever arms
