@@ -11,9 +11,10 @@ by ``benchmarks/collapse_factors.py`` (``benchmarks/results/collapse_factors_a0.
 docs/collapse.md): a collapse is chaotic, one seed is one draw.
 """
 
+import numpy as np
 import pytest
 
-from skfem_granular.collapse import dry_runout, run_dry
+from skfem_granular.collapse import dry_runout, realisations, run_dry
 from skfem_granular.packing import prepare_column
 
 #: 200 12-gons, a = 0.8, mass front at 20 tau_c: sample sd of (L_inf - L0)/L0 over
@@ -24,15 +25,25 @@ SD_200 = 0.09
 SD_30 = 0.37
 
 
-def test_small_irregular_column_runs_out_as_the_quasi_2d_law_within_spread():
-    """30 irregular grains (seed 2, soft contacts): the deposit comes to rest, its mass
-    front lies behind the gap front, and its run-out is Lajeunesse's within 3 SD_30
-    (30 grains make a deposit three grains high: the spread is large)."""
-    p = prepare_column(30, 0.8, "dense", shape="irregular", seed=2, E=2e5, margin=1.0)
-    r = run_dry(p)
-    assert r.at_rest and r.energy_ratio < 1e-4
-    assert r.runout <= r.runout_gap
-    assert abs(r.runout - dry_runout(p.aspect)) <= 3 * SD_30
+def test_small_irregular_columns_run_out_as_the_quasi_2d_law_on_average():
+    """30 irregular grains (soft contacts), seeds 0-5: every deposit comes to rest with its
+    mass front behind the gap front, and the mean run-out over the six is Lajeunesse's law
+    within three standard errors of the mean (measured: 0.557 +- 0.15 against 0.96; one
+    seed's window, 3 SD_30, would admit a column that never spreads and twice the law)."""
+    runs = []
+    for seed in range(6):
+        p = prepare_column(30, 0.8, "dense", shape="irregular", seed=seed, E=2e5, margin=1.0)
+        r = run_dry(p)
+        assert r.at_rest and r.energy_ratio < 1e-4, seed
+        assert r.runout <= r.runout_gap, seed
+        runs.append((r.runout, dry_runout(p.aspect)))
+    runout = realisations([x for x, _ in runs])
+    law = float(np.mean([law for _, law in runs]))
+    standard_error = runout["std"] / np.sqrt(runout["count"])
+    assert abs(runout["mean"] - law) <= 3 * standard_error, (runout, law)
+    assert 3 * standard_error < 0.5 * law  # the window excludes no spread and twice the law
+    # regression pins (this library's own runs): the seeds' spread, as measured before
+    assert runout["std"] == pytest.approx(SD_30, abs=0.02)
 
 
 @pytest.mark.slow
