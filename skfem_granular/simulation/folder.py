@@ -302,7 +302,29 @@ def _write_all(fd: int, data: bytes) -> None:
         data = data[os.write(fd, data):]
 
 
-class OutputFolder:
+class HeldFolder:
+    """A folder held through its :attr:`lock` while a ``with`` block is open (subclasses take
+    it in :meth:`acquire`)."""
+
+    lock: FolderLock
+
+    def acquire(self) -> None:
+        raise NotImplementedError
+
+    def release(self) -> None:
+        """Remove the lock (if this object holds it)."""
+        self.lock.release()
+
+    def __enter__(self):
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+        return False
+
+
+class OutputFolder(HeldFolder):
     """The output folder of one run: ownership checks, the lock, clean-up.
 
     Parameters
@@ -369,18 +391,6 @@ class OutputFolder:
         if self.mode == "overwrite":
             remove_run(self.directory)
             self.mode = "resume"  # what is written from now on is this run's
-
-    def release(self) -> None:
-        """Remove the lock (if this object holds it)."""
-        self.lock.release()
-
-    def __enter__(self):
-        self.acquire()
-        return self
-
-    def __exit__(self, *exc):
-        self.release()
-        return False
 
 
 def remove_run(directory) -> list[Path]:

@@ -23,6 +23,7 @@ from ..simulation.folder import (
     STUDY_MARKER,
     FolderInUseError,
     FolderLock,
+    HeldFolder,
     run_files,
     study_in,
 )
@@ -61,7 +62,7 @@ def _names(paths) -> str:
     return ", ".join(p.name for p in paths[:3]) + (", ..." if len(paths) > 3 else "")
 
 
-class StudyFolder:
+class StudyFolder(HeldFolder):
     """The folder of one study: ownership checks, the lock, ``study.json``.
 
     Parameters
@@ -133,18 +134,6 @@ class StudyFolder:
         except BaseException:
             self.lock.release()
             raise
-
-    def release(self) -> None:
-        """Remove the lock."""
-        self.lock.release()
-
-    def __enter__(self):
-        self.acquire()
-        return self
-
-    def __exit__(self, *exc):
-        self.release()
-        return False
 
 
 def _record_path(out_dir: Path, run: Run) -> Path:
