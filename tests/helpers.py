@@ -111,3 +111,11 @@ def partial_names(directory) -> list[str]:
     from pathlib import Path
 
     return sorted(p.name for p in Path(directory).iterdir() if p.name.startswith(".partial-"))
+
+
+def only_error_line(capsys) -> str:
+    """The one line a command wrote to stderr (no traceback), from pytest's ``capsys``."""
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in cap.err, cap.err
+    return lines[0]

@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from helpers import only_error_line
 
 from skfem_granular.cli import main
 from skfem_granular.scene import bundled
@@ -71,13 +72,6 @@ def run_out(tmp_path_factory):
     return out
 
 
-def _only_line(capsys) -> str:
-    cap = capsys.readouterr()
-    lines = cap.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in cap.err, cap.err
-    return lines[0]
-
-
 @pytest.fixture
 def no_rendering(monkeypatch):
     """Rendering fails the test: a refusal must come before it."""
@@ -96,7 +90,7 @@ def test_fps_out_of_range_exit_2_and_the_gif_unchanged(run_out, tmp_path, capsys
     gif = tmp_path / "run.gif"
     gif.write_bytes(b"GIF89a the earlier animation")
     assert main(["render", str(run_out), "--animation", str(gif), "--fps", fps]) == 2
-    assert _only_line(capsys) == (f"skfem-granular: error: --fps = {float(fps)!r}: must be a "
+    assert only_error_line(capsys) == (f"skfem-granular: error: --fps = {float(fps)!r}: must be a "
                                   "finite number in [0.1, 100]")
     assert gif.read_bytes() == b"GIF89a the earlier animation"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.gif"]
@@ -120,7 +114,7 @@ def test_fps_at_the_ends_of_the_range(run_out, tmp_path, capsys):
 def test_every_below_one_exit_2(run_out, tmp_path, capsys, every, no_rendering):
     assert main(["render", str(run_out), "--animation", str(tmp_path / "a.gif"),
                  "--every", every]) == 2
-    assert _only_line(capsys) == (f"skfem-granular: error: --every = {int(every)}: must be an "
+    assert only_error_line(capsys) == (f"skfem-granular: error: --every = {int(every)}: must be an "
                                   "integer >= 1")
 
 
@@ -129,13 +123,13 @@ def test_png_under_a_file_exit_2_before_rendering(run_out, tmp_path, capsys, no_
     blocker.write_text("x")
     for png in (blocker / "pic.png", blocker / "sub" / "pic.png"):
         assert main(["render", str(run_out), "--png", str(png)]) == 2
-        assert _only_line(capsys) == (
+        assert only_error_line(capsys) == (
             f"skfem-granular: error: --png = {str(png)!r}: must be a file that can be "
             f"written; output path {str(png)!r}: {str(blocker)!r} is not a directory")
     folder = tmp_path / "d.png"
     folder.mkdir()
     assert main(["render", str(run_out), "--png", str(folder)]) == 2
-    assert _only_line(capsys).endswith(f"output path {str(folder)!r}: is a directory")
+    assert only_error_line(capsys).endswith(f"output path {str(folder)!r}: is a directory")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "d.png"]
 
 
@@ -154,7 +148,7 @@ def test_unwritable_folder_exit_2_before_rendering(run_out, tmp_path, capsys, mo
                         lambda p, mode: False if str(p) == str(locked) else real(p, mode))
     for option, name in (("--png", "pic.png"), ("--animation", "run.gif")):
         assert main(["render", str(run_out), option, str(locked / name)]) == 2
-        assert _only_line(capsys).endswith(f"directory {str(locked)!r} is not writable")
+        assert only_error_line(capsys).endswith(f"directory {str(locked)!r} is not writable")
     assert not list(locked.iterdir())
 
 
@@ -162,7 +156,7 @@ def test_bad_animation_path_refused_before_the_png(run_out, tmp_path, capsys, no
     png = tmp_path / "pic.png"
     assert main(["render", str(run_out), "--png", str(png), "--animation",
                  str(tmp_path / "run.avi")]) == 2
-    assert _only_line(capsys).endswith(f"--animation = {str(tmp_path / 'run.avi')!r}: must "
+    assert only_error_line(capsys).endswith(f"--animation = {str(tmp_path / 'run.avi')!r}: must "
                                        "end in .gif or .mp4")
     assert not png.exists()
 
@@ -188,7 +182,7 @@ def test_failed_write_exit_1_and_the_earlier_png_kept(run_out, tmp_path, capsys,
     monkeypatch.setattr(Image.Image, "save", save)
     capsys.readouterr()
     assert main(["render", str(run_out), "--png", str(png), "--field", "pressure"]) == 1
-    assert _only_line(capsys) == ("skfem-granular: error: render: No space left on device "
+    assert only_error_line(capsys) == ("skfem-granular: error: render: No space left on device "
                                   "(a file written before keeps its content)")
     assert png.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pic.png"]

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import only_error_line
 
 from skfem_granular import studies
 from skfem_granular.cli import main
@@ -279,13 +280,6 @@ def _hashes(d):
             for p in sorted(Path(d).rglob("*")) if p.is_file()}
 
 
-def _only_line(capsys) -> str:
-    cap = capsys.readouterr()
-    lines = cap.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in cap.err, cap.err
-    return lines[0]
-
-
 @pytest.fixture
 def copy_of(faxen, tmp_path):
     """A copy of the faxen study's folder (the module's own stays as it is)."""
@@ -308,7 +302,7 @@ def test_study_into_a_simulation_runs_folder_is_refused(tmp_path, capsys):
     before = _hashes(out)
     for extra in ([], ["--overwrite"]):
         assert main(["study", "faxen", "--smoke", "--out", str(out), *extra]) == 2
-        assert _only_line(capsys) == (
+        assert only_error_line(capsys) == (
             f"skfem-granular: error: output folder {str(out)!r}: holds a simulation run's "
             "output (flow.pvd, flow_00000.vtu, flow_00001.vtu, ...); a study needs a folder "
             "of its own")
@@ -320,7 +314,7 @@ def test_study_into_another_studys_folder_is_refused_unless_overwrite(copy_of, c
     (copy_of / "notes.txt").write_text("mine")
     for argv in (["single-particle"], ["faxen", "--smoke"]):  # another study, another grid
         assert main(["study", *argv, "--out", str(copy_of)]) == 2
-        assert _only_line(capsys) == (
+        assert only_error_line(capsys) == (
             f"skfem-granular: error: output folder {str(copy_of)!r}: holds the output of "
             "another study (faxen: study.json, table.csv, table.md, ...); use --overwrite "
             "(library: overwrite=True) to replace it, or another folder")
@@ -365,12 +359,12 @@ def test_live_lock_refuses_a_second_study_and_a_run(copy_of, tmp_path, capsys):
         (copy_of / LOCK_NAME).write_text(json.dumps(
             {"pid": holder.pid, "host": socket.gethostname(), "what": "study"}))
         assert main(["study", "faxen", "--out", str(copy_of)]) == 2
-        assert _only_line(capsys).startswith(
+        assert only_error_line(capsys).startswith(
             f"skfem-granular: error: output folder {str(copy_of)!r}: in use by a running "
             f"study (pid {holder.pid} on ")
         assert main(["run", "single-particle", "--t-end", "2e-5", "--out", str(copy_of),
                      "--no-progress"]) == 2
-        assert f"in use by a running study (pid {holder.pid} on " in _only_line(capsys)
+        assert f"in use by a running study (pid {holder.pid} on " in only_error_line(capsys)
     finally:
         holder.kill()
         holder.wait()
@@ -378,7 +372,7 @@ def test_live_lock_refuses_a_second_study_and_a_run(copy_of, tmp_path, capsys):
     for extra in ([], ["--overwrite"]):
         assert main(["run", "single-particle", "--t-end", "2e-5", "--out", str(copy_of),
                      "--no-progress", *extra]) == 2
-        assert _only_line(capsys) == (
+        assert only_error_line(capsys) == (
             f"skfem-granular: error: output folder {str(copy_of)!r}: holds the output of the "
             "study 'faxen' (study.json); a run needs a folder of its own")
     assert _hashes(copy_of) == before
