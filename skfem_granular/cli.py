@@ -26,9 +26,9 @@
   matrix (:mod:`skfem_granular.cli_collapse`).
 - ``skfem-granular pack N --out FILE.npz [--aspect A] [--state dense|loose] [--shape S]
   [--seed K] [--size-ratio R] [--d-mean D] [--margin M] [--scene FILE.toml [--dry]]``
-  prepares a column of N grains with the DEM alone
-  (:func:`skfem_granular.packing.prepare_column`), saves it and prints its solid fraction;
-  ``--scene`` also writes a collapse scene using it.
+  prepares a column of N grains with the DEM alone, saves it and prints its solid
+  fraction; ``--scene`` also writes a collapse scene using it
+  (:mod:`skfem_granular.cli_pack`).
 
 Bad input ends with exit code 2 and one line naming the field and the allowed range.
 """
@@ -40,7 +40,7 @@ import gc
 import sys
 from dataclasses import replace
 
-from ._validate import MAX_SEED, MAX_WORKERS, in_range
+from ._validate import MAX_WORKERS, in_range
 
 
 class _UsageError(Exception):
@@ -91,33 +91,12 @@ def _parser() -> argparse.ArgumentParser:
                           "before meshing; default 16 GB)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     sub.add_parser("scenes", help="list the bundled scenes (names for 'run')")
-    pk = sub.add_parser("pack", help="prepare a dense or loose column of grains (DEM only)")
-    pk.add_argument("n", type=int, help="number of grains")
-    pk.add_argument("--out", required=True, help="the packing file (.npz) to write")
-    pk.add_argument("--aspect", type=float, default=0.8, help="H0 / L0 (default 0.8)")
-    pk.add_argument("--state", default="dense", help="dense or loose (default dense)")
-    pk.add_argument("--shape", default="ngon", help="ngon, hexagon or irregular")
-    pk.add_argument("--seed", type=int, default=0)
-    pk.add_argument("--size-ratio", type=float, default=1.8, help="d_max / d_min")
-    pk.add_argument("--d-mean", type=float, default=1e-3, help="mean diameter (m)")
-    pk.add_argument("--margin", type=float, default=None,
-                    help="solid fraction measured this many d_max from the edges "
-                         "(default 2, and 0.5 for columns of fewer than 100 grains)")
-    pk.add_argument("--scene", help="also write a collapse scene (TOML) using the packing")
-    pk.add_argument("--dry", action="store_true", help="the scene without fluid")
-    ren = sub.add_parser("render", help="picture (PNG) or animation (GIF/MP4) of a run's output")
-    ren.add_argument("out", help="output directory of a run (with flow.pvd, particles.pvd)")
-    ren.add_argument("--field", default="speed", choices=["speed", "pressure", "vorticity", "mesh"])
-    ren.add_argument("--vectors", choices=["glyphs", "streamlines"], help="overlay")
-    ren.add_argument("--frame", type=int, default=-1, help="frame index for --png (default last)")
-    ren.add_argument("--png", help="write one frame to this PNG")
-    ren.add_argument("--animation", help="write all frames to this .gif (or .mp4)")
-    ren.add_argument("--every", type=int, default=1,
-                     help="--animation: every N-th frame (default 1)")
-    ren.add_argument("--fps", type=float, default=10.0,
-                     help="--animation: frames per second (default 10)")
     from .cli_collapse import add_parser as add_collapse
+    from .cli_pack import add_parser as add_pack
+    from .cli_render import add_parser as add_render
 
+    add_pack(sub)
+    add_render(sub)
     add_collapse(sub)
     stu = sub.add_parser("study", help="accuracy against cost over a grid of discretisations")
     stu.add_argument("study", choices=["single-particle", "faxen"])
@@ -181,54 +160,6 @@ def _check_out(field: str, out) -> None:
         raise ValueError(f"{field} = {str(out)!r}: must be a writable directory; {exc}") from None
 
 
-def _pack_checks(args) -> None:
-    """``pack``'s numbers and output files, refused in one line naming the option, before the
-    column is prepared."""
-    from .scene.parse import MAX_PARTICLES
-
-    in_range("n", args.n, 1, MAX_PARTICLES, integer=True)
-    in_range("--aspect", args.aspect, 0.05, 20)
-    in_range("--seed", args.seed, 0, MAX_SEED, integer=True)
-    in_range("--size-ratio", args.size_ratio, 1, 4)
-    in_range("--d-mean", args.d_mean, 1e-5, 0.1)
-    if args.margin is not None:
-        in_range("--margin", args.margin, 0, 20)
-    _check_output_file("--out", _npz(args.out), (".npz",))
-    if args.scene:
-        _check_output_file("--scene", args.scene, None)
-
-
-def _npz(path):
-    """``path`` as :meth:`~skfem_granular.packing.Packing.save` writes it (``.npz`` added)."""
-    return path if str(path).endswith(".npz") else f"{path}.npz"
-
-
-def _pack(args) -> int:
-    """``skfem-granular pack``: prepare, save, report (and write a scene)."""
-    from pathlib import Path
-
-    from .collapse import column_toml
-    from .io import atomic_write
-    from .packing import prepare_column
-
-    try:
-        _pack_checks(args)
-        p = prepare_column(args.n, args.aspect, args.state, shape=args.shape, seed=args.seed,
-                           size_ratio=args.size_ratio, d_mean=args.d_mean,
-                           margin=args.margin)
-        path = p.save(args.out)
-        if args.scene:
-            text = column_toml(p, Path(path).resolve(), fluid=not args.dry)
-            atomic_write(args.scene, lambda tmp: Path(tmp).write_text(text))
-    except (ValueError, OSError, RuntimeError) as exc:
-        print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
-    print(f"{p.n} grains, {p.state}: solid fraction {p.solid_fraction:.4f}, L0 = {p.width:.6g} m,"
-          f" H0 = {p.height:.6g} m (a = {p.aspect:.3g}), settled in {p.settle_time:.3g} s "
-          f"({p.wall_time:.1f} s wall) -> {path}")
-    return 0
-
-
 def main(argv=None) -> int:
     """Entry point; returns the exit code.
 
@@ -271,15 +202,24 @@ def _command(argv) -> int:
     if args.command == "scenes":
         return _scenes()
     if args.command == "render":
-        return _render(args)
+        from .cli_render import run as run_render
+
+        return run_render(args)
     if args.command == "study":
         return _study(args)
     if args.command == "pack":
-        return _pack(args)
+        from .cli_pack import run as run_pack
+
+        return run_pack(args)
     if args.command == "collapse":
         from .cli_collapse import run as run_collapse
 
         return run_collapse(args)
+    return _run(args)
+
+
+def _run(args) -> int:
+    """``skfem-granular run``: a scene (or a resumed run) to its end."""
     from .scene import Scene
     from .simulation import Simulation
 
@@ -401,65 +341,6 @@ def _stopped_line(result) -> str:
     if (out / "checkpoint.npz").exists():
         return f"{where}; continue with: skfem-granular run --resume {out}"
     return f"{where}; no checkpoint was written yet, so it cannot be resumed"
-
-
-def _render(args) -> int:
-    """``skfem-granular render``: options and output paths checked before anything is read."""
-    from pathlib import Path
-
-    from . import viz
-
-    out = Path(args.out)
-    try:
-        viz.check_fps(args.fps, "--fps")
-        in_range("--every", args.every, 1, integer=True)
-        if not args.png and not args.animation:
-            raise ValueError("render: give --png PATH and/or --animation PATH")
-        for option, path, suffixes in (("--png", args.png, (".png",)),
-                                       ("--animation", args.animation, (".gif", ".mp4"))):
-            if path:
-                _check_output_file(option, path, suffixes)
-        if not (out / "flow.pvd").exists():
-            raise ValueError(f"out = {str(out)!r}: no flow.pvd there (run a fluid scene first)")
-        frames = viz.read_pvd(out / "flow.pvd")
-        parts = viz.read_pvd(out / "particles.pvd") if (out / "particles.pvd").exists() else []
-        if args.png:
-            if not -len(frames) <= args.frame < len(frames):
-                raise ValueError(f"--frame = {args.frame}: must be in [{-len(frames)}, "
-                                 f"{len(frames) - 1}]")
-            t, f = frames[args.frame]
-            p = parts[args.frame][1] if len(parts) == len(frames) else None
-            viz.render_frame(f, p, args.png, field=args.field, vectors=args.vectors, time=t)
-            print(f"wrote {args.png}")
-        if args.animation:
-            viz.render_series(out, args.animation, field=args.field, vectors=args.vectors,
-                              every=args.every, fps=args.fps)
-            print(f"wrote {args.animation}")
-    except (ValueError, ImportError) as exc:
-        print(f"skfem-granular: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
-    except OSError as exc:  # reading a frame or writing the picture failed (a full disk)
-        print(f"skfem-granular: error: render: {exc.strerror or exc}"
-              + (f": {exc.filename}" if exc.filename else "")
-              + " (a file written before keeps its content)", file=sys.stderr)
-        return 1
-    return 0
-
-
-def _check_output_file(option: str, path, suffixes) -> None:
-    """Refuse, naming ``option``, an output file of another suffix or that cannot be written
-    (the file system is left as it is)."""
-    from pathlib import Path
-
-    from .io import check_writable
-
-    if suffixes and Path(path).suffix.lower() not in suffixes:
-        raise ValueError(f"{option} = {str(path)!r}: must end in {' or '.join(suffixes)}")
-    try:
-        check_writable(Path(path), create=False)
-    except ValueError as exc:
-        raise ValueError(f"{option} = {str(path)!r}: must be a file that can be written; "
-                         f"{exc}") from None
 
 
 def _study(args) -> int:

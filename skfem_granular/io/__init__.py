@@ -12,6 +12,7 @@ from .files import (
     PARTIAL_PREFIX,
     atomic_path,
     atomic_write,
+    check_output_file,
     check_writable,
     keep_previous,
     partial_files,
@@ -24,6 +25,6 @@ from .table import CSVLog, History, Table, read_csv
 from .vtu import write_vtu
 
 __all__ = ["PARTIAL_PREFIX", "CSVLog", "History", "PVDSeries", "Table", "atomic_path",
-           "atomic_write",
+           "atomic_write", "check_output_file",
            "check_writable", "keep_previous", "partial_files", "plain", "read_csv", "read_pvd",
            "remove_partial_files", "save_figure", "write_text", "write_vtu"]

@@ -244,3 +244,15 @@ def remove_partial_files(directory) -> list[Path]:
         except FileNotFoundError:
             pass
     return gone
+
+
+def check_output_file(option: str, path, suffixes) -> None:
+    """Refuse, naming ``option``, an output file of another suffix or that cannot be written
+    (the file system is left as it is)."""
+    if suffixes and Path(path).suffix.lower() not in suffixes:
+        raise ValueError(f"{option} = {str(path)!r}: must end in {' or '.join(suffixes)}")
+    try:
+        check_writable(Path(path), create=False)
+    except ValueError as exc:
+        raise ValueError(f"{option} = {str(path)!r}: must be a file that can be written; "
+                         f"{exc}") from None
