@@ -369,19 +369,21 @@ def test_summary_counts_factorisations_by_kind():
 
 
 def test_phase_times_are_each_counted_once():
-    """The summary's phases of the run add up to at most its total (the set-up's first mesh
-    and blocks are booked before the total starts): the Newton refreshes inside the
-    corrector are booked as assembly and factorisation, not again as solve (they were: the
-    collapse's phases summed to 200 s of a 161 s run). The collapse to 20 ms has
-    refreshes and remeshes."""
+    """The summary's phases add up to at most its total, which counts the set-up (its first
+    mesh and blocks, the kernels' compilation on a first run: a first single-particle run
+    booked assembly 20.2 s of an 11.9 s total when the total was the loop's alone): the
+    Newton refreshes inside the corrector are booked as assembly and factorisation, not
+    again as solve (they were: the collapse's phases summed to 200 s of a 161 s run). The
+    collapse to 20 ms has refreshes and remeshes."""
     sc = Scene.from_toml(bundled("collapse"))
     sc = replace(sc, output_dir=None, time=replace(sc.time, t_end=0.02))
     sim = Simulation(sc)
-    set_up = sum(sim.timings.values())  # first mesh and blocks: before the run's total starts
+    set_up = {k: v for k, v in sim.timings.items() if k != "total"}
+    assert 0 < sum(set_up.values()) <= sim.timings["total"]  # the set-up's phases, within it
     res = sim.run(progress=False)
     assert res.summary["jacobian_refreshes"] >= 1 and res.summary["remeshes"] >= 1
     phases = res.summary["wall_time"]
-    assert sum(v for k, v in phases.items() if k != "total") - set_up <= phases["total"]
+    assert sum(v for k, v in phases.items() if k != "total") <= phases["total"]
 
 
 def test_collecting_phase_times_mid_run_loses_no_factorisation():
