@@ -153,7 +153,8 @@ def _problem(parts: StepParts, s: CoupledState, bdf2: ts.BDF2, start, loads,
     return StepProblem(bdf2=bdf2, t_new=s.t + bdf2.dt, u_n=s.u_n, xi_n=xi_n, F_ext=F_ext,
                        T_ext=T_ext, u_prev=None if bdf2.euler else s.u_prev,
                        xi_prev=None if bdf2.euler else s.xi_prev, u_guess=u_guess,
-                       p_guess=s.p_n, xi_guess=xi_guess, geometry=geometry,
+                       p_guess=s.p_n, xi_guess=xi_guess,
+                       p_prev=None if bdf2.euler else s.p_prev, geometry=geometry,
                        xi_imposed=xi_imposed)
 
 
@@ -174,7 +175,7 @@ def _next_state(parts: StepParts, s: CoupledState, bdf2: ts.BDF2, sol: StepSolut
         du_n=du, du_prev=s.du_n, dxi_n=acc, dxi_prev=s.dxi_n, since_remesh=s.since_remesh + 1,
         contact_age=0 if touching else s.contact_age + 1, euler=bdf2.euler,
         nodes_n=keeper.mesh.p if keeper.ale else None,
-        nodes_prev=s.nodes_n if keeper.ale else None)
+        nodes_prev=s.nodes_n if keeper.ale else None, p_prev=s.p_n)
 
 
 def local_error(s: CoupledState, attempt: Attempt, step: float, radius) -> float | None:

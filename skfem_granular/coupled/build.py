@@ -83,6 +83,7 @@ def build_coupling(scene, mesh, dem, centers=None, terms=None, assembly="compile
     from .monolithic import MonolithicCoupling
     from .partitioned import PartitionedCoupling
     from .rigid import CorrectorOptions, RigidBodies
+    from .split import SplitCoupling
 
     space = TaylorHood(mesh, assembly=assembly)
     walls = {"wall": (0.0, 0.0)}
@@ -94,4 +95,6 @@ def build_coupling(scene, mesh, dem, centers=None, terms=None, assembly="compile
         return MonolithicCoupling(space, scene.fluid, walls, bodies,
                                   corrector=CorrectorOptions(newton_tol=scene.newton_tol),
                                   **common)
+    if scene.coupling == "split":
+        return SplitCoupling(space, scene.fluid, walls, bodies, **common)
     return PartitionedCoupling(space, scene.fluid, walls, bodies, **common)

@@ -29,6 +29,9 @@ class StepProblem:
         The same at ``t_{n-1}`` (not read for backward Euler).
     u_guess, p_guess, xi_guess : ndarray or None
         First iterate of the corrector (default: the state at ``t_n``, zero pressure).
+    p_prev : ndarray or None
+        The pressure at ``t_{n-1}`` on the current mesh (None: unknown, as after a
+        remesh); the split coupling extrapolates the pressure with it.
     geometry : callable or None
         Moving mesh (ALE): ``geometry(xi) -> (space, centers, w_mesh)`` for the mesh where
         rigid velocities ``xi`` put the particles at ``t_new``, or None when the mesh in use
@@ -49,6 +52,7 @@ class StepProblem:
     u_guess: np.ndarray | None = None
     p_guess: np.ndarray | None = None
     xi_guess: np.ndarray | None = None
+    p_prev: np.ndarray | None = None
     geometry: Callable | None = None
     xi_imposed: np.ndarray | None = None
 

@@ -143,6 +143,15 @@ class RigidParticles:
             x[d] = np.where(c == 0, xi_imposed[0, k], xi_imposed[1, k]) + xi_imposed[2, k] * lever
         return x
 
+    @property
+    def chord_extra_iterations(self) -> int:
+        """Iterations the chord operator held cost beyond fresh ones (its ledger)."""
+        return self.factors.extra_iterations
+
+    @chord_extra_iterations.setter
+    def chord_extra_iterations(self, value: int) -> None:
+        self.factors.extra_iterations = value
+
     def forget_factorization(self) -> None:
         """Factorise anew on the next step (as a coupling rebuilt from a checkpoint does)."""
         self.factors.clear()

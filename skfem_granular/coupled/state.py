@@ -23,6 +23,8 @@ class CoupledState:
         The full fluid vector ``[u_n, p_n]`` on the current mesh (for output).
     u_prev, xi_prev, q_prev : ndarray or None
         Fluid velocity, rigid velocities ``(3, K)`` and poses ``(3, K)`` at ``t_{n-1}``.
+    p_prev : ndarray or None
+        Pressure at ``t_{n-1}`` (None after a remesh: not carried over).
     dt_prev : float or None
         The step that led to ``t`` (None: the next step is backward Euler).
     F_held, T_held : ndarray
@@ -66,6 +68,7 @@ class CoupledState:
     euler: bool = True
     nodes_n: np.ndarray | None = None
     nodes_prev: np.ndarray | None = None
+    p_prev: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

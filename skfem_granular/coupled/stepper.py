@@ -311,7 +311,7 @@ class CoupledStepper:
                 "counters": {"remeshes": k.remeshes, "retries": self.retries,
                              "rejections": self.rejections, "euler_steps": self.euler_steps,
                              **self.factor_counts,
-                             "chord_extra_iterations": self.coupling.factors.extra_iterations,
+                             "chord_extra_iterations": self.coupling.chord_extra_iterations,
                              **{"remesh_reasons." + r: v
                                 for r, v in k.remesh_reasons.items()}}}
         # a moved mesh's factorisation depends on where the mesh was when it was made:
@@ -345,7 +345,7 @@ class CoupledStepper:
             st.coupling.refactor(data, k.reference_space)
         # what the writer's factorisation had cost beyond fresh ones (ChordStall's ledger)
         c = data["counters"]
-        st.coupling.factors.extra_iterations = c.get("chord_extra_iterations", 0)
+        st.coupling.chord_extra_iterations = c.get("chord_extra_iterations", 0)
         if st.ale and st.state.nodes_n is not None:  # the mesh where the last step left it
             st.coupling.move(k.reference_space.moved(st.state.nodes_n),
                              data["coupling_centers"], None)

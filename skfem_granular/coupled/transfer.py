@@ -105,5 +105,6 @@ def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project
             u_prev = divergence_free_projection(project, u_prev,
                                                 space=None if old_prev is None else new_prev)
     x = np.concatenate([u_n, np.zeros(new.N - new.nu) if p_n is None else p_n])
-    return {"u_n": u_n, "du_n": du_n, "p_n": p_n, "u_prev": u_prev, "du_prev": du_prev,
+    return {"u_n": u_n, "du_n": du_n, "p_n": p_n, "p_prev": None, "u_prev": u_prev,
+            "du_prev": du_prev,
             "x": x}

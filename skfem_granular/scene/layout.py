@@ -84,14 +84,17 @@ SCENE_DOCS: Docs = {
     "time": None,
     "effects": None,
     "coupling": KeyDoc("string", "monolithic: fluid and rigid particle velocities in one "
-                       "system; partitioned: the paper's scheme", '"monolithic" or '
-                       '"partitioned"', key="scheme", section="coupling"),
+                       "system; split: pressure correction, the rigid velocities implicit "
+                       "(many grains); partitioned: the paper's scheme",
+                       '"monolithic", "split" or "partitioned"', key="scheme",
+                       section="coupling"),
     "remesh_fraction": KeyDoc("float", "fixed mesh: remesh when a particle has moved by this "
                               "fraction of its outline edge", "> 0 and <= 1",
                               section="coupling"),
-    "mesh_motion": KeyDoc("string", "\"auto\": \"ale\" with the monolithic coupling, \"fixed\" "
-                          "with the partitioned one; \"ale\": the mesh moves with the particles",
-                          '"auto", "ale" or "fixed" ("ale" needs "monolithic")',
+    "mesh_motion": KeyDoc("string", "\"auto\": \"ale\" with the monolithic and split "
+                          "couplings, \"fixed\" with the partitioned one; \"ale\": the mesh "
+                          "moves with the particles",
+                          '"auto", "ale" or "fixed" ("ale" needs "monolithic" or "split")',
                           section="coupling"),
     "remesh_travel": KeyDoc("float", "moving mesh: remesh when a particle has travelled this "
                             "many radii from where its mesh was built", "> 0 and <= 100",

@@ -38,13 +38,17 @@ class Scene:
     contact_law : ContactLaw
     mesh, time, effects
         :class:`MeshSpec`, :class:`TimeSpec`, :class:`Effects`.
-    coupling : {"monolithic", "partitioned"}
+    coupling : {"monolithic", "partitioned", "split"}
+        ``"monolithic"``: fluid and rigid-body velocities in one Newton system (the
+        reference); ``"split"``: pressure correction with the rigid velocities implicit in
+        the projection (no coupled factorisation: for many grains); ``"partitioned"``: the
+        paper's staggered scheme.
     remesh_fraction : float
         Fixed mesh: remesh when a particle has moved by this fraction of its
         outline edge length since the mesh was built.
     mesh_motion : {"auto", "ale", "fixed"}
-        ``"auto"`` (default): ``"ale"`` with the monolithic coupling, ``"fixed"``
-        with the partitioned one (see :attr:`moving_mesh`).
+        ``"auto"`` (default): ``"ale"`` with the monolithic and split couplings,
+        ``"fixed"`` with the partitioned one (see :attr:`moving_mesh`).
         ``"fixed"``: the mesh stays until a remesh (the particle boundary lags
         behind the particle by up to ``remesh_fraction`` of an edge).
         ``"ale"``: the mesh moves with the particles every step (outline nodes
@@ -110,7 +114,7 @@ class Scene:
     def moving_mesh(self) -> bool:
         """Whether the mesh moves with the particles (ALE): ``mesh_motion`` resolved."""
         if self.mesh_motion == "auto":
-            return self.coupling == "monolithic"
+            return self.coupling in ("monolithic", "split")
         return self.mesh_motion == "ale"
 
     def __post_init__(self):
@@ -150,17 +154,17 @@ class Scene:
                 raise ValueError(f"particles[{i}]: polygon sticks out of domain.box {list(d)}")
             if p.motion is not None:
                 self._check_motion(i, p)
-        if self.coupling not in ("monolithic", "partitioned"):
-            raise ValueError(
-                f"coupling.scheme = {self.coupling!r}: must be 'monolithic' or 'partitioned'"
-            )
+        if self.coupling not in ("monolithic", "partitioned", "split"):
+            raise ValueError(f"coupling.scheme = {self.coupling!r}: must be 'monolithic', "
+                             "'split' or 'partitioned'")
         num("coupling", "remesh_fraction", self.remesh_fraction, lo=0, hi=1.0)
         if self.mesh_motion not in ("auto", "fixed", "ale"):
             raise ValueError(f"coupling.mesh_motion = {self.mesh_motion!r}: must be 'auto', "
                              "'ale' or 'fixed'")
-        if self.mesh_motion == "ale" and self.coupling != "monolithic":
+        if self.mesh_motion == "ale" and self.coupling == "partitioned":
             raise ValueError("coupling.mesh_motion = 'ale': needs coupling.scheme = "
-                             "'monolithic' (the partitioned scheme runs on a fixed mesh)")
+                             "'monolithic' or 'split' (the partitioned scheme runs on a "
+                             "fixed mesh)")
         num("coupling", "remesh_travel", self.remesh_travel, lo=0, hi=100.0)
         object.__setattr__(self, "newton_tol",
                            num("coupling", "newton_tol", self.newton_tol, lo=0, hi=1e-3))
