@@ -46,7 +46,7 @@ def _first_step(coupling, space, F_ext, dt):
 
 @pytest.mark.parametrize("ratio", [2.65, 0.5, 0.1, 0.01])
 def test_release_matches_added_mass_and_the_monolithic_step(released, ratio):
-    """A first step is a restart: its split is corrected until it is the monolithic step, so
+    """A first step (no pressure yet) is solved until it is the monolithic step, so
     the acceleration at release is the added-mass value (C_a = (b^2 + a^2)/(b^2 - a^2)),
     also for grains 100x lighter than the fluid, where a staggered scheme diverges."""
     space, area = released
@@ -64,12 +64,12 @@ def test_release_matches_added_mass_and_the_monolithic_step(released, ratio):
 
 
 def test_a_single_pass_underestimates_the_added_mass(released):
-    """Without the restart's corrections the first step's added mass is that of the lumped
-    projection mass (0.85 diag(M)): the acceleration is too large by more than 10 %. This
-    is why restarts are corrected."""
+    """In one pass the first step's added mass is that of the lumped projection mass
+    (0.85 diag(M)): the acceleration is too large by more than 10 %. This is why a run's
+    first step is solved to the monolithic step."""
     space, area = released
     rho_p, dt = 1100.0, 1e-5
-    options = SplitOptions(restart_corrections=0)
+    options = SplitOptions(start_iterations=0)
     one = _first_step(_coupling(space, area, rho_p, SplitCoupling, options=options), space,
                       _weight(area, rho_p), dt)
     mono = _first_step(_coupling(space, area, rho_p, MonolithicCoupling), space,
@@ -83,7 +83,7 @@ def test_the_step_velocity_is_discretely_divergence_free(released):
     free pressure to round-off after a pass."""
     space, area = released
     c = _coupling(space, area, 2650.0, SplitCoupling,
-                  options=SplitOptions(restart_corrections=0))
+                  options=SplitOptions(start_iterations=0))
     res = _first_step(c, space, _weight(area, 2650.0), 1e-4)
     u = res.x[: space.nu]
     div = (space.B @ u)[1:]  # the first pressure DOF is pinned
