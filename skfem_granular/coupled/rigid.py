@@ -197,13 +197,17 @@ class RigidParticles:
         T = -np.bincount(self._owner, weights=r * self.all_levers(), minlength=self.K)
         return F, T
 
+    def held_block(self):
+        """The velocity block of the factorisation held (None: none)."""
+        return self.factors.A_uu
+
     def flow(self, x):
         """The fluid part of a coupled state as a :class:`~skfem_granular.fluid.Flow`."""
         from ..fluid.flow import Flow
 
         op = self.op
         rhs_u = self._last[0] if self._last else None
-        A_uu = self._last[2] if self._last and self._last[2] is not None else self.factors.A_uu
+        A_uu = self._last[2] if self._last and self._last[2] is not None else self.held_block()
         w_mesh = getattr(self, "w_mesh", None)
 
         def residual_u(xx):

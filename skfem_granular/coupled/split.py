@@ -75,8 +75,8 @@ class SplitOptions:
     max_iterations : int
         Iteration limit of either (a step that reaches it fails and is halved).
     refactor_after : int
-        A moved mesh's projection is factorised anew (there) after a step whose GMRES
-        needed more than this many iterations with the held factors.
+        The projection is factorised anew, on the mesh where a step ends, after a step
+        whose GMRES needed more than this many iterations with the held factors.
     start_tol, start_iterations, start_krylov : float, int, int
         A step with no pressure to start from (a run's first) is solved by Newton's
         method (GMRES preconditioned with the split pass) until its update is below
@@ -134,6 +134,10 @@ class SplitCoupling(ReducedRigid):
     @chord_extra_iterations.setter
     def chord_extra_iterations(self, value: int) -> None:
         pass
+
+    def held_block(self):
+        """None: the split holds no factorisation of a velocity block."""
+        return None
 
     def forget_factorization(self) -> None:
         """Factorise the projection anew on the next step."""
@@ -206,7 +210,7 @@ class SplitCoupling(ReducedRigid):
     def _project(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(psi, y, H)``: the projection's solution for the divergence ``r`` (free
         pressures) on the current mesh, and the velocity mass ``H`` it used."""
-        if self._factors is None or self._refactor_due:
+        if self._factors is None:
             self._factorize()
         assert self._factors is not None
         b = np.concatenate([r, np.zeros(self.nu_z - self.n_ufree)])
@@ -286,6 +290,8 @@ class SplitCoupling(ReducedRigid):
         x[self.space.nu:] = self._pressure(p_hat, None if cold else div)
         F, T = self._forces(pr, xi, x, ctx)
         self._follow(pr.geometry, xi)  # the mesh where the solved velocities put the grains
+        if self._refactor_due:  # here, so that a checkpoint's record holds where
+            self._factorize()
         self._last = (ctx.rhs_u, x, ctx.A)
         self.timings["forces"] += time.perf_counter() - t2
         return StepSolution(x=x, xi=xi, force=F, torque=T, iterations=iterations)
