@@ -94,6 +94,8 @@ def main(argv=None):
     ap.add_argument("--tau", type=float, default=8.0, help="run length in tau_c")
     ap.add_argument("--checkpoint-every", type=int, default=200)
     ap.add_argument("--tag", default=None)
+    ap.add_argument("--coupling", default="monolithic", choices=["monolithic", "split"],
+                    help="the immersed runs' coupled solver")
     ap.add_argument("--smoke", action="store_true", help="30 grains, 0.1 tau_c, seed 0")
     ap.add_argument("--to-rest", action="store_true",
                     help="end a run when its kinetic energy is below --stop-ratio of its peak")
@@ -117,7 +119,7 @@ def main(argv=None):
                              t_end_tau=a.t_max if a.to_rest else a.tau, to_rest=a.to_rest,
                              stop_ratio=a.stop_ratio, t_min_tau=a.t_min,
                              checkpoint_every=a.checkpoint_every,
-                             packing_t_max=a.packing_t_max)
+                             packing_t_max=a.packing_t_max, coupling=a.coupling)
     except ValueError as exc:
         ap.error(str(exc))
 

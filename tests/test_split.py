@@ -183,3 +183,27 @@ def test_contacts_and_remeshing_resume_bit_for_bit(tmp_path):
     for c in ("vy", "vx", "omega", "Fy", "torque"):
         assert np.all(np.isfinite(getattr(h_full, c)))
         assert np.array_equal(getattr(h_full, c), getattr(h_res, c)), c
+
+
+def _column(scheme, dt, t_end):
+    from helpers import column_packing
+
+    from skfem_granular.collapse import column_scene
+
+    sc = column_scene(column_packing("dense"), fluid=True, core_ratio=0.9, t_end=t_end, dt=dt)
+    sim = Simulation(replace(sc, coupling=scheme, output_dir=None))
+    for _ in sim.evolve(progress=False):
+        pass
+    v = sim.dem.particles.v
+    return v[1].mean(), 0.5 * (sim.dem.mass * (v[:2] ** 2).sum(axis=0)).sum()
+
+
+def test_an_immersed_column_in_contact_converges_to_the_monolithic_run():
+    """30 grains released in water, every step a backward-Euler contact step: at the
+    collapse's step (0.2 ms) the split's mean grain velocity and kinetic energy at 6 ms
+    differ from the monolithic run's by 1-4 %, as the monolithic run's own differ from its
+    run at a quarter of the step (2.4 %, 1.7 %); at 50 us the two agree within 0.5 %
+    (at 3 ms, here: 0.08 % and 0.11 %)."""
+    mono = np.array(_column("monolithic", 5e-5, 3e-3))
+    split = np.array(_column("split", 5e-5, 3e-3))
+    assert split == pytest.approx(mono, rel=5e-3)

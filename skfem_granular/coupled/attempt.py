@@ -154,7 +154,7 @@ def _problem(parts: StepParts, s: CoupledState, bdf2: ts.BDF2, start, loads,
                        T_ext=T_ext, u_prev=None if bdf2.euler else s.u_prev,
                        xi_prev=None if bdf2.euler else s.xi_prev, u_guess=u_guess,
                        p_guess=s.p_n, xi_guess=xi_guess,
-                       p_prev=None if bdf2.euler else s.p_prev, geometry=geometry,
+                       p_prev=s.p_prev, dt_prev=s.dt_prev, geometry=geometry,
                        xi_imposed=xi_imposed)
 
 

@@ -32,6 +32,8 @@ class StepProblem:
     p_prev : ndarray or None
         The pressure at ``t_{n-1}`` on the current mesh (None: unknown, as after a
         remesh); the split coupling extrapolates the pressure with it.
+    dt_prev : float or None
+        ``t_n - t_{n-1}`` when ``p_prev`` is given (backward-Euler steps too).
     geometry : callable or None
         Moving mesh (ALE): ``geometry(xi) -> (space, centers, w_mesh)`` for the mesh where
         rigid velocities ``xi`` put the particles at ``t_new``, or None when the mesh in use
@@ -53,6 +55,7 @@ class StepProblem:
     p_guess: np.ndarray | None = None
     xi_guess: np.ndarray | None = None
     p_prev: np.ndarray | None = None
+    dt_prev: float | None = None
     geometry: Callable | None = None
     xi_imposed: np.ndarray | None = None
 

@@ -5,7 +5,7 @@ saddle-point matrix. In the unknowns ``z = (u_free, xi)`` of
 :class:`~skfem_granular.coupled.reduced.ReducedRigid` (``u = E z + x_D``):
 
 1. **Predictor.** With the pressure extrapolated (``p# = p_n + w (p_n - p_{n-1})``,
-   ``p_n`` alone on restarts) and the convection explicit at the extrapolated velocity
+   ``p_n`` alone after a remesh) and the convection explicit at the extrapolated velocity
    ``u*``, the SPD system ``[E^T (a0 rho M + eta K) E + a0 M_b] z~ = ...`` for the fluid
    velocity and the grains' rigid velocities together (the viscous coupling implicit), by
    conjugate gradients with a Jacobi preconditioner, matrix-free.
@@ -254,9 +254,13 @@ class SplitCoupling(ReducedRigid):
     def step(self, problem: StepProblem) -> StepSolution:
         """One split BDF2 (or backward-Euler) step of fluid and rigid particles.
 
-        Steps without a pressure at ``t_{n-1}`` (backward Euler after contacts, after a
-        remesh) hold the pressure of ``t_n`` instead of extrapolating it: one pass, first
-        order in the splitting. A step without any pressure to start from (a run's first)
+        The pressure is extrapolated linearly from ``t_{n-1}`` and ``t_n`` on backward-Euler
+        (contact) steps too: holding it there instead made a 100-grain immersed column's
+        mean grain velocity 4 % slower after 30 steps than the monolithic run's, ten times
+        the monolithic run's own change when the step is halved, and halving the step did
+        not reduce the difference; extrapolated, it is 0.02 %. After a remesh (no pressure
+        at ``t_{n-1}`` on the mesh) the pressure of ``t_n`` is held. A step without any
+        pressure to start from (a run's first)
         would start its grains with the lumped projection's added mass, wrong by 10-20 %:
         it is solved to the monolithic step (:meth:`_converge`).
         """
@@ -422,13 +426,13 @@ class _StepContext:
 
 def _extrapolate(pr: StepProblem, n_p: int):
     """``(u*, xi*, p#)``: velocities extrapolated to the end of the step (linearly, as the
-    first guess of the step), pressure extrapolated linearly when the step has a BDF2
-    history and a previous pressure, held otherwise."""
+    first guess of the step), the pressure extrapolated linearly from ``p_prev`` (held
+    without it, zero without any)."""
     u = np.array(pr.u_n if pr.u_guess is None else pr.u_guess, dtype=float)
     xi = np.array(pr.xi_n if pr.xi_guess is None else pr.xi_guess, dtype=float)
     p = np.zeros(n_p) if pr.p_guess is None else np.array(pr.p_guess, dtype=float)
-    if pr.p_guess is not None and not pr.bdf2.euler and pr.p_prev is not None:
-        w = pr.bdf2.dt / pr.bdf2.dt_prev
+    if pr.p_guess is not None and pr.p_prev is not None and pr.dt_prev is not None:
+        w = pr.bdf2.dt / pr.dt_prev
         p = p + w * (p - pr.p_prev)
     return u, xi, p
 

@@ -46,7 +46,7 @@ def summarise_collapses(records: Iterable[dict]) -> list[dict]:
     Returns
     -------
     list of dict
-        Per set-up (state, medium, core ratio): ``seeds`` and, for each of
+        Per set-up (state, medium, core ratio, coupling): ``seeds`` and, for each of
         :data:`SUMMARY_KEYS`, :func:`~skfem_granular.collapse.realisations` of its values
         (mean, sample standard deviation, min, max, count; None without values).
     """
@@ -54,10 +54,11 @@ def summarise_collapses(records: Iterable[dict]) -> list[dict]:
 
     groups: dict = {}
     for r in records:
-        groups.setdefault((r["state"], r["medium"], r["core_ratio"]), []).append(r)
+        groups.setdefault((r["state"], r["medium"], r["core_ratio"],
+                           r.get("coupling", "monolithic")), []).append(r)
     out = []
-    for (state, medium, core), rs in sorted(groups.items(), key=lambda kv: str(kv[0])):
-        row = {"state": state, "medium": medium, "core_ratio": core,
+    for (state, medium, core, coupling), rs in sorted(groups.items(), key=lambda kv: str(kv[0])):
+        row = {"state": state, "medium": medium, "core_ratio": core, "coupling": coupling,
                "seeds": [r["seed"] for r in rs]}
         for key in SUMMARY_KEYS:
             vals = [r[key] for r in rs if r[key] is not None]

@@ -68,6 +68,8 @@ class CollapseRun:
         saved frames (>= 1).
     packing_t_max : float
         The deposition's time limit (s) when the packing is prepared (> 0).
+    coupling : {"monolithic", "split"}
+        Immersed: the coupled solver (``Scene.coupling``); ``"split"`` for many grains.
     """
 
     n: int
@@ -83,6 +85,7 @@ class CollapseRun:
     checkpoint_every: int = 200
     vtu_every: int = 250
     packing_t_max: float = 3.0
+    coupling: str = "monolithic"
 
     def __post_init__(self):
         # plain Python numbers (a numpy integer from np.arange would not go into JSON)
@@ -102,6 +105,8 @@ class CollapseRun:
         object.__setattr__(self, "to_rest", bool(self.to_rest))
         if self.state not in STATES:
             raise ValueError(f"state = {self.state!r}: must be one of {', '.join(STATES)}")
+        if self.coupling not in ("monolithic", "split"):
+            raise ValueError(f"coupling = {self.coupling!r}: must be 'monolithic' or 'split'")
         if self.medium not in MEDIA:
             raise ValueError(f"medium = {self.medium!r}: must be one of {', '.join(MEDIA)}")
         if self.medium == "dry" and self.core_ratio != 1.0:
@@ -124,7 +129,8 @@ class CollapseRun:
     def key(self) -> str:
         """The run's name and its folder's: ``dense_dry_s0``, ``loose_immersed_core0.9_s2``."""
         core = f"_core{self.core_ratio:g}" if self.medium == "immersed" else ""
-        return f"{self.state}_{self.medium}{core}_s{self.seed}"
+        solver = "_split" if self.medium == "immersed" and self.coupling == "split" else ""
+        return f"{self.state}_{self.medium}{core}_s{self.seed}{solver}"
 
 
 def _choices(name: str, values) -> list:
@@ -268,7 +274,10 @@ def _simulation(run: CollapseRun, pk, t_end: float, folder: Path):
     scene = column_scene(pk, fluid=run.medium == "immersed", core_ratio=run.core_ratio,
                          t_end=t_end, name=folder.name, output_dir=str(folder),
                          vtu_every=run.vtu_every)
-    return Simulation(replace(scene, checkpoint_every=run.checkpoint_every), overwrite=True)
+    scene = replace(scene, checkpoint_every=run.checkpoint_every)
+    if run.medium == "immersed":
+        scene = replace(scene, coupling=run.coupling)
+    return Simulation(scene, overwrite=True)
 
 
 def _measure(pk, folder: Path, domain) -> dict:
@@ -397,7 +406,8 @@ def execute_collapse(run: CollapseRun, out_dir, packings=None) -> dict:
                 "message": f"{run.key}: {summary.get('status')} at step "
                            f"{summary.get('steps')} ({why})"}
     rec = {"run": run.key, "state": run.state, "medium": run.medium,
-           "core_ratio": run.core_ratio, "seed": run.seed, "grains": pk.n,
+           "core_ratio": run.core_ratio, "coupling": run.coupling, "seed": run.seed,
+           "grains": pk.n,
            "solid_fraction": pk.solid_fraction, "tau_c": tau, **cost,
            "steps": summary.get("steps"), "remeshes": summary.get("remeshes"),
            "factorizations": summary.get("factorizations"),
