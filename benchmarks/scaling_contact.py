@@ -21,6 +21,11 @@ Usage::
     python benchmarks/scaling_contact.py --n 25 100       # -> results/scaling_contact.json
     python benchmarks/scaling_contact.py --n 400 --append # add a run to the file
     python benchmarks/scaling_contact.py --steps 12 --n 25 --out /tmp/x.json   # quick look
+    python benchmarks/scaling_contact.py --coupling monolithic split --n 100 400 \
+        --out benchmarks/results/split_scaling_contact.json   # the two solvers in turn
+
+With several ``--coupling`` values the runs of one grain count follow each other (the
+solvers interleaved on the same machine state), and the fits are per solver.
 """
 
 from __future__ import annotations
@@ -79,11 +84,15 @@ def set_stall_rule(rule: str | None) -> None:
         raise SystemExit(f"--stall-rule: 'rate:R' or 'amortised:N', not {rule!r}")
 
 
-def child(n: int, steps: int, stall_rule: str | None = None) -> dict:
+def child(n: int, steps: int, stall_rule: str | None = None,
+          coupling: str = "monolithic") -> dict:
     """One collapse window in this process: the record of :func:`scaling.simulate`.
 
-    ``stall_rule``: see :func:`set_stall_rule` (a comparison of the rules).
+    ``stall_rule``: see :func:`set_stall_rule` (a comparison of the rules); ``coupling``:
+    the scene's coupled solver.
     """
+    from dataclasses import replace
+
     from skfem_granular.collapse import column_scene
 
     set_stall_rule(stall_rule)
@@ -91,7 +100,9 @@ def child(n: int, steps: int, stall_rule: str | None = None) -> dict:
     pk = packing(n)
     scene = column_scene(pk, fluid=True, core_ratio=CORE_RATIO, t_end=steps * DT, dt=DT,
                          name=f"collapse_contact_{n}")
-    rec = simulate(n, steps * DT, WARMUP, log=sys.stderr, scene=scene)
+    rec = simulate(n, steps * DT, WARMUP, log=sys.stderr,
+                   scene=replace(scene, coupling=coupling))
+    rec["coupling"] = coupling
     c = rec["per_step"]["contacts"]
     rec["contact_step_fraction"] = sum(1 for k in c if k > 0) / max(len(c), 1)
     rec["solid_fraction"] = pk.solid_fraction
@@ -105,9 +116,11 @@ def child(n: int, steps: int, stall_rule: str | None = None) -> dict:
     return rec
 
 
-def run_child(n: int, steps: int, stall_rule: str | None = None) -> dict:
+def run_child(n: int, steps: int, stall_rule: str | None = None,
+              coupling: str = "monolithic") -> dict:
     """:func:`child` in a fresh interpreter, with the load average around it."""
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", str(n), str(steps)]
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", str(n), str(steps),
+           "--coupling", coupling]
     if stall_rule is not None:
         cmd += ["--stall-rule", stall_rule]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
@@ -120,7 +133,12 @@ def run_child(n: int, steps: int, stall_rule: str | None = None) -> dict:
 
 
 def fits(runs: list) -> dict:
-    """Growth exponents in the number of grains (and the solve cost in the DOFs)."""
+    """Growth exponents in the number of grains (and the solve cost in the DOFs), per
+    coupled solver when the runs have several."""
+    solvers = sorted({r.get("coupling", "monolithic") for r in runs})
+    if len(solvers) > 1:
+        return {s: fits([r for r in runs if r.get("coupling", "monolithic") == s])
+                for s in solvers}
     if len(runs) < 2:
         return {}
     g = [r["grains"] for r in runs]
@@ -136,10 +154,11 @@ def fits(runs: list) -> dict:
 
 def table(data: dict) -> str:
     """The runs as a plain-text table."""
-    rows = ["grains  dofs_mean  steps  contact%  remeshes  factor  refresh  "
+    rows = ["grains  coupling    dofs_mean  steps  contact%  remeshes  factor  refresh  "
             "s/ms(wall)  s/ms(cpu)  peak_MB"]
     for r in data["runs"]:
-        rows.append(f"{r['grains']:6d} {r['dofs_mean']:10.0f} {r['steps']:6d} "
+        rows.append(f"{r['grains']:6d}  {r.get('coupling', 'monolithic'):10s} "
+                    f"{r['dofs_mean']:10.0f} {r['steps']:6d} "
                     f"{100 * r['contact_step_fraction']:8.0f} {r['remeshes']:9d} "
                     f"{r['steady_factorizations']:7d} {r['steady_jacobian_refreshes']:8d} "
                     f"{r['steady_cost_per_ms_s']:11.2f} {r['steady_cpu_per_ms_s']:10.2f} "
@@ -158,10 +177,13 @@ def main(argv=None) -> dict | None:
     ap.add_argument("--stall-rule", default=None,
                     help="'rate:R' or 'amortised:N': the chord iteration's stall rule in place "
                          "of the library's (a comparison)")
+    ap.add_argument("--coupling", nargs="+", default=["monolithic"],
+                    choices=["monolithic", "split"], help="coupled solvers, in turn per run")
     ap.add_argument("--child", nargs=2, metavar=("N", "STEPS"), help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
-        print(json.dumps(child(int(a.child[0]), int(a.child[1]), a.stall_rule)))
+        print(json.dumps(child(int(a.child[0]), int(a.child[1]), a.stall_rule,
+                               a.coupling[0])))
         return None
     data = {"benchmark": "scaling_contact", "commit": commit_id(), "cpus": os.cpu_count(),
             "aspect": ASPECT, "core_ratio": CORE_RATIO, "dt": DT, "warmup_steps": WARMUP,
@@ -169,8 +191,9 @@ def main(argv=None) -> dict | None:
     if a.append and a.out.exists():
         data["runs"] = [r for r in json.loads(a.out.read_text())["runs"] if r["grains"] not in a.n]
     for n in a.n:
-        data["runs"].append(run_child(n, a.steps, a.stall_rule))
-        data["runs"].sort(key=lambda r: r["grains"])
+        for coupling in a.coupling:
+            data["runs"].append(run_child(n, a.steps, a.stall_rule, coupling))
+        data["runs"].sort(key=lambda r: (r["grains"], r.get("coupling", "monolithic")))
         data["fits"] = fits(data["runs"])
         a.out.parent.mkdir(parents=True, exist_ok=True)
         a.out.write_text(json.dumps(data, indent=1) + "\n")  # kept after every run

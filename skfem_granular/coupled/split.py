@@ -87,14 +87,14 @@ class SplitOptions:
         Relative residual at which GMRES stops in each of those Newton iterations.
     """
 
-    predictor_rtol: float = 1e-10
-    projection_rtol: float = 1e-10
+    predictor_rtol: float = 1e-8
+    projection_rtol: float = 1e-8
     max_iterations: int = 500
-    refactor_after: int = 8
+    refactor_after: int = 12
     start_tol: float = 1e-6
     newton_rtol: float = 1e-4
     start_iterations: int = 10
-    start_krylov: int = 40
+    start_krylov: int = 10
 
 
 class SplitCoupling(ReducedRigid):
@@ -179,6 +179,33 @@ class SplitCoupling(ReducedRigid):
         S = B_i @ sp.diags(1.0 / H[self._u_free]) @ B_i.T
         return sp.bmat([[S, C], [C.T, -M_eff]], format="csr")
 
+    def _projection_operator(self) -> spla.LinearOperator:
+        """:meth:`_projection_matrix` on the current mesh as products with ``B``, ``B^T``
+        and ``E`` (no matrix is built: a moved mesh's GMRES needs only its products)."""
+        sp_ = self.space
+        nu, nz, rig = sp_.nu, self.nz, self.rigid_slice
+        H = self._lumped_mass()
+        H_inv = np.zeros(nu)
+        H_inv[self._u_free] = 1.0 / H[self._u_free]
+        E_G = self.E[:nu, rig]
+        M_eff = (E_G.T @ sp.diags(H) @ E_G + sp.diags(self._inertia_diag())).tocsr()
+        B, B_T = sp_.B, sp_.B.T
+        p_rows = self._p_free - nu
+        n_p = p_rows.size
+
+        def matvec(v):
+            psi = np.zeros(sp_.N - nu)
+            psi[p_rows] = v[:n_p]
+            g = B_T @ psi
+            z = np.zeros(nz)
+            z[rig] = v[n_p:]
+            top = (B @ (H_inv * g + (self.E @ z)[:nu]))[p_rows]
+            bottom = (self.ET @ np.concatenate([g, np.zeros(sp_.N - nu)]))[rig] - M_eff @ v[n_p:]
+            return np.concatenate([top, bottom])
+
+        n = n_p + M_eff.shape[0]
+        return spla.LinearOperator((n, n), matvec=matvec)
+
     def _projection_ordering(self) -> np.ndarray:
         """Minimum degree on the projection's graph: its unknowns (free pressures, rigid
         velocities) adjacent when they share a velocity DOF (computed once per mesh)."""
@@ -218,7 +245,7 @@ class SplitCoupling(ReducedRigid):
             sol = self._apply_factors(b)
         else:  # a moved mesh: the held factors precondition the current operator
             pre = spla.LinearOperator((b.size, b.size), matvec=self._apply_factors)
-            sol, its = _krylov(spla.gmres, self._projection_matrix(), b, pre,
+            sol, its = _krylov(spla.gmres, self._projection_operator(), b, pre,
                                self.options.projection_rtol, self.options.max_iterations,
                                restart=30, callback_type="pr_norm")
             self.counts["projection_iterations"] += its
@@ -230,18 +257,20 @@ class SplitCoupling(ReducedRigid):
         """The correction ``dz`` solving ``[E^T A E + a0 M_b] dz = -G`` (velocity-like
         unknowns) by conjugate gradients, Jacobi-preconditioned."""
         nu, n, nf = self.space.nu, self.nu_z, self.n_ufree
-        E_u = self.E[:nu, :n].tocsr()
-        E_uT = E_u.T.tocsr()
         rigid = a0 * self._inertia_diag()
+        z = np.zeros(self.nz)
+        x = np.zeros(self.space.N)
 
         def matvec(v):
-            out = E_uT @ (A @ (E_u @ v))
+            z[:n] = v
+            x[:nu] = A @ (self.E @ z)[:nu]
+            out = (self.ET @ x)[:n]
             out[nf:] += rigid * v[nf:]
             return out
 
         diag = np.empty(n)
         diag[:nf] = A.diagonal()[self._u_free]
-        E_G = E_u[:, nf:]
+        E_G = self.E[:nu, self.rigid_slice]
         diag[nf:] = np.asarray(E_G.multiply(A @ E_G).sum(axis=0)).ravel() + rigid
         op = spla.LinearOperator((n, n), matvec=matvec)
         pre = spla.LinearOperator((n, n), matvec=lambda v: v / diag)
@@ -324,7 +353,7 @@ class SplitCoupling(ReducedRigid):
         DOFs), and ``B u~ - B u`` of the predicted correction."""
         nu, n, nf = self.space.nu, self.nu_z, self.n_ufree
         dz = self._predictor(ctx.A, G[:n], ctx.a0)
-        ddiv = self.space.B @ (self.E[:nu, :n] @ dz)
+        ddiv = self.space.B @ (self.E @ np.concatenate([dz, np.zeros(self.nz - n)]))[:nu]
         r = ddiv[self._p_free - nu] + G[n:]
         psi_free, y, H = self._project(r)
         psi = np.zeros(self.space.N - nu)
