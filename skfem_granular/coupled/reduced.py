@@ -102,7 +102,7 @@ class ReducedRigid(RigidParticles):
 
             self._lever_slots = (slots(tagged), slots(tagged_T))
 
-    def move(self, space, centers: np.ndarray, w_mesh: np.ndarray) -> None:
+    def move(self, space, centers: np.ndarray, w_mesh: np.ndarray | None) -> None:
         """Evaluate the coupled system on a moved mesh (ALE) from now on.
 
         Parameters
@@ -111,8 +111,8 @@ class ReducedRigid(RigidParticles):
             ``reference_space.moved(p)``: the mesh with the particles where they are.
         centers : (2, K) ndarray
             The particles' centres there (the rotations' lever arms are taken about them).
-        w_mesh : ndarray
-            Mesh velocity (velocity DOFs) of the step being solved.
+        w_mesh : ndarray or None
+            Mesh velocity (velocity DOFs) of the step being solved (None: at rest).
         """
         self.space = space
         self.op = self.reference_op.moved(space)

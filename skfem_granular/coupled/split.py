@@ -113,7 +113,8 @@ class SplitCoupling(ReducedRigid):
         super().__init__(space, fluid, walls, bodies, convection=convection, terms=terms)
         self.options = SplitOptions() if options is None else options
         self._ordering: np.ndarray | None = None
-        self._factors = None  # (LU, vertices it was made on, centres) of the projection
+        # (LU, vertices it was made on, centres) of the projection
+        self._factors: tuple[spla.SuperLU, np.ndarray, np.ndarray] | None = None
         self._refactor_due = False
         self.counts = {"factorizations": 0, "predictor_iterations": 0,
                        "projection_iterations": 0}
