@@ -17,7 +17,8 @@ must see this checkout's folders). Every run is a column of ``--n`` grains
 aspect 0.8; the packings are kept in ``results/packings/``) released behind its gate
 (:func:`skfem_granular.collapse.column_scene`) dry or in water, the immersed runs at each
 core ratio (the dry ones need none). A run writes its output folder
-``out/collapse_matrix_<tag>/<run>`` with a checkpoint every ``--checkpoint-every`` steps:
+``out/collapse_matrix_<tag>/<run>`` (or ``--folder``/<run>) with a checkpoint every
+``--checkpoint-every`` steps:
 a run cut off is continued where its checkpoint stands the next time this script is
 started (:meth:`Simulation.resume`), a finished one is read back, not run again. Per run
 the JSON records the cost (CPU, wall, DOFs, steps) and the run-out series
@@ -94,6 +95,9 @@ def main(argv=None):
     ap.add_argument("--tau", type=float, default=8.0, help="run length in tau_c")
     ap.add_argument("--checkpoint-every", type=int, default=200)
     ap.add_argument("--tag", default=None)
+    ap.add_argument("--folder", type=Path, default=None,
+                    help="the runs' folders (default out/collapse_matrix_<tag>; runs that "
+                         "must outlive this checkout: a folder outside it)")
     ap.add_argument("--coupling", default="monolithic", choices=["monolithic", "split"],
                     help="the immersed runs' coupled solver")
     ap.add_argument("--smoke", action="store_true", help="30 grains, 0.1 tau_c, seed 0")
@@ -133,7 +137,8 @@ def main(argv=None):
 
         client = Client(a.scheduler)
     try:
-        study = run_collapse_study(runs, ROOT / "out" / f"collapse_matrix_{tag}",
+        folder = a.folder or ROOT / "out" / f"collapse_matrix_{tag}"
+        study = run_collapse_study(runs, folder,
                                    packings=PACKINGS, workers=a.workers,
                                    executor=client.get_executor() if client else None,
                                    on_record=recorded, log=lambda line: print(line, flush=True))
