@@ -144,7 +144,7 @@ CLI = [
     ("gap-spacing-graded", scene("[mesh]\nkind = 'graded'\ngap_spacing = 1.0\n"), [],
      ["mesh.gap_spacing", "only for kind 'field'"]),
     ("coupling-scheme", scene("[coupling]\nscheme = 'magic'\n"), [],
-     ["coupling.scheme = 'magic'", "'monolithic' or 'partitioned'"]),
+     ["coupling.scheme = 'magic'", "'monolithic', 'split' or 'partitioned'"]),
     ("remesh_fraction-zero", scene("[coupling]\nremesh_fraction = 0.0\n"), [],
      ["coupling.remesh_fraction = 0.0", "> 0 and <= 1"]),
     ("newton_tol-loose", scene("[coupling]\nnewton_tol = 0.01\n"), [],

@@ -285,6 +285,12 @@ class NavierStokesOperator:
                  w_mesh: np.ndarray | None = None) -> sp.csr_matrix:
         """Full Jacobian of :meth:`residual` at ``x`` (Picard matrix if ``newton=False``);
         with ``w_mesh`` that of the ALE form (the wind ``u - w``: ``- rho N(w)`` added)."""
+        return self.linear_matrix(self.velocity_jacobian(x, c_mass, newton, w_mesh), x)
+
+    def velocity_jacobian(self, x: np.ndarray, c_mass: float = 0.0, newton: bool = True,
+                          w_mesh: np.ndarray | None = None) -> sp.csr_matrix:
+        """The velocity block of :meth:`jacobian` (without user terms): ``c rho M + eta K``
+        and the linearised convection (Oseen's ``rho N(u - w)`` with ``newton=False``)."""
         A = self.velocity_block(c_mass)
         # values on the kernel's one pattern: differences and sums entry by entry, as
         # scipy's sparse operations compute them (exact zeros dropped at the end), without
@@ -298,7 +304,7 @@ class NavierStokesOperator:
         if values is not None:
             values *= self.fluid.density
             A = self._plus_convection(A, values)
-        return self.linear_matrix(A, x)
+        return A
 
     def reduced_jacobian(self, x: np.ndarray, c_mass: float = 0.0,
                          newton: bool = True) -> sp.csr_matrix:
