@@ -14,6 +14,7 @@ Usage::
 
     python benchmarks/resume_window.py out/collapse_matrix_n1000/loose_immersed_core0.9_s0 \\
         --steps 12 --out benchmarks/results/resume_window_loose.json
+    python benchmarks/resume_window.py RUN --coupling split   # the window on the split solver
 """
 
 from __future__ import annotations
@@ -38,8 +39,9 @@ def commit_of(path: Path) -> str:
     return r.stdout.strip() or "unknown"
 
 
-def window(run: Path, steps: int) -> dict:
-    """Resume a copy of ``run``'s checkpoint and time ``steps`` steps."""
+def window(run: Path, steps: int, coupling: str | None = None) -> dict:
+    """Resume a copy of ``run``'s checkpoint and time ``steps`` steps (``coupling``: on
+    another coupled solver than the run's)."""
     import skfem_granular
     from skfem_granular.simulation import Simulation
 
@@ -50,7 +52,7 @@ def window(run: Path, steps: int) -> dict:
         if (run / "history.csv").exists():  # a checkpoint of version 4 follows its rows
             shutil.copy2(run / "history.csv", folder / "history.csv")
         w0, c0 = time.perf_counter(), time.process_time()
-        sim = Simulation.resume(folder)
+        sim = Simulation.resume(folder, coupling=coupling)
         resume = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
                   "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
         stepper = sim.stepper
@@ -68,6 +70,7 @@ def window(run: Path, steps: int) -> dict:
         after = dict(getattr(stepper, "factor_counts", {}))
         return {
             "run": run.name,
+            "coupling": sim.scene.coupling,
             "code": str(Path(skfem_granular.__file__).resolve().parents[1]),
             "commit": commit_of(Path(skfem_granular.__file__).resolve().parents[1]),
             "steps": len(per_step),
@@ -87,6 +90,8 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run", type=Path, help="a run's output folder with checkpoint.npz")
     ap.add_argument("--steps", type=int, default=12)
+    ap.add_argument("--coupling", choices=["monolithic", "split"], default=None,
+                    help="continue on this coupled solver (default: the run's)")
     ap.add_argument("--out", type=Path, default=None,
                     help="JSON file the record is appended to (default: print only)")
     args = ap.parse_args(argv)
@@ -94,7 +99,7 @@ def main(argv=None) -> None:
         sys.exit(f"run: {args.run} has no checkpoint.npz")
     if args.steps < 1:
         sys.exit(f"--steps = {args.steps}: must be at least 1")
-    rec = window(args.run, args.steps)
+    rec = window(args.run, args.steps, args.coupling)
     print(json.dumps({k: v for k, v in rec.items() if k not in ("per_step", "dofs")}))
     if args.out is not None:
         # a file of another form (an interleaved comparison's "calls") keeps what it holds

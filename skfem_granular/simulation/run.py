@@ -182,7 +182,8 @@ class Simulation:
 
     @classmethod
     def resume(cls, directory, t_end: float | None = None, *,
-               budget: Budget | None = None, terms=None) -> Simulation:
+               budget: Budget | None = None, terms=None,
+               coupling: str | None = None) -> Simulation:
         """Continue a run from the checkpoint in ``directory``.
 
         Parameters
@@ -195,6 +196,10 @@ class Simulation:
             Limits the continued run is checked against (see :class:`Simulation`).
         terms : UserTerms, optional
             The user forms of the fluid the run was started with (not in the checkpoint).
+        coupling : {"monolithic", "split"}, optional
+            Continue with this coupled solver instead of the run's (``Scene.coupling``),
+            for instance a many-grain run on the split solver; the state carries over, the
+            new solver factorises anew.
 
         Returns
         -------
@@ -229,6 +234,13 @@ class Simulation:
                                  "with overwrite to end earlier)")
             scene = replace(scene, time=replace(scene.time, t_end=t_end))
         saved = data["stepper"]
+        if coupling is not None and coupling != scene.coupling:
+            if coupling not in ("monolithic", "split") or scene.coupling == "partitioned":
+                raise ValueError(f"coupling = {coupling!r}: a run on the "
+                                 f"{scene.coupling!r} coupling continues on 'monolithic' or "
+                                 "'split' (the partitioned scheme's mesh does not move)")
+            scene = replace(scene, coupling=coupling)
+            saved = {**saved, "factor_a0": None}  # the other solver's factorisation
         sim = cls(replace(scene, output_dir=None), mesh=saved.get("mesh"),  # no folder check
                   budget=budget, terms=terms)
         sim.scene, sim.output_dir, sim.folder = scene, Path(directory), folder
