@@ -175,7 +175,8 @@ def _next_state(parts: StepParts, s: CoupledState, bdf2: ts.BDF2, sol: StepSolut
         du_n=du, du_prev=s.du_n, dxi_n=acc, dxi_prev=s.dxi_n, since_remesh=s.since_remesh + 1,
         contact_age=0 if touching else s.contact_age + 1, euler=bdf2.euler,
         nodes_n=keeper.mesh.p if keeper.ale else None,
-        nodes_prev=s.nodes_n if keeper.ale else None, p_prev=s.p_n)
+        nodes_prev=s.nodes_n if keeper.ale else None,
+        p_prev=s.p_n if keeper.coupling.uses_pressure_history else None)
 
 
 def local_error(s: CoupledState, attempt: Attempt, step: float, radius) -> float | None:

@@ -91,6 +91,10 @@ class RigidParticles:
     #: The factorisations of the step matrices (built by each coupling for its system).
     factors: FactorCache
 
+    #: Whether a step reads the pressure at ``t_{n-1}`` (``StepProblem.p_prev``); the
+    #: state carries it (and a checkpoint stores it) only for such a coupling.
+    uses_pressure_history = False
+
     def __init__(self, space, fluid, walls: dict, bodies: RigidBodies, *,
                  convection: bool = True, terms=None):
         self.space = space
