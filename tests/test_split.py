@@ -224,3 +224,26 @@ def test_a_run_continues_on_the_other_solver(tmp_path):
     assert h.vy[-1] == pytest.approx(ref.vy[-1], rel=1e-4)
     with pytest.raises(ValueError, match="coupling = 'magic'"):
         Simulation.resume(tmp_path / "part", coupling="magic")
+
+
+@pytest.mark.slow
+def test_settling_disk_on_the_split_path():
+    """The validation page's settling disk (Re about 17) on the split solver, to the floor:
+    v_y against Koblitz et al.'s curve (relative L2 over [0, 0.7 s] within 1 %), its speed
+    at 0.5 s (near its peak) and the time its centre is two radii above the floor within
+    1e-4 of the monolithic run's (regression pins of that run: 5.5588 cm/s and 0.7534 s,
+    tests/test_curves.py; the issue asked for 0.5 %). Measured: L2 0.00443 (monolithic
+    0.00443), peak 5.56893 cm/s at 0.6 s (1.4e-7 from the monolithic run's), floor at
+    0.753417 s (0.753422 s)."""
+    from skfem_granular.scene import TimeSpec
+    from skfem_granular.validation import curves
+
+    sc = Scene.bundled("settling_disk_channel")
+    sc = replace(sc, coupling="split", time=TimeSpec(t_end=0.8, dt=1e-3), output_dir=None)
+    h = Simulation(sc).run(progress=False).history
+    t, y, vy = h.t, h.y[:, 0], h.vy[:, 0]
+    k = curves.load_curve("koblitz2017_settling_vy")
+    assert curves.l2_difference(t, vy, *k.series("vy"), interval=(0.0, 0.7)).relative < 0.01
+    assert -np.interp(0.5, t, vy) == pytest.approx(0.0555882, rel=1e-4)
+    out = curves.compare_settling(t, y, vy, k, y_stop=2.5e-3, y0=0.04)
+    assert out["t_floor"]["run"] == pytest.approx(0.753422, rel=1e-4)
