@@ -297,6 +297,7 @@ class NavierStokesOperator:
         # merging patterns (1000 grains: 2 s a difference, 2 s a sum); a Stokes operator
         # on a fixed mesh never builds the kernel
         kern, u = self.space.convection, x[: self.space.nu]
+        values: np.ndarray | None
         if self.convection and w_mesh is not None and not newton:  # N(u) - N(w) = N(u - w)
             values = kern.jacobian_data(u - w_mesh, newton=False)
         else:
