@@ -119,3 +119,34 @@ def only_error_line(capsys) -> str:
     lines = cap.err.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in cap.err, cap.err
     return lines[0]
+
+
+def released_cylinder(a: float = 1e-3, b: float = 2e-3, n_seg: int = 64):
+    """A cylinder of radius ``a`` (``n_seg``-gon, boundary ``particle0``) at rest inside a
+    fixed concentric one of radius ``b`` (``wall``): ``(TaylorHood space, the inner
+    polygon's area)``, the added-mass geometry of docs/validation.md case 7."""
+    from skfem_granular.fluid import TaylorHood
+
+    mesh = annulus(a, b, n_seg, 2 * n_seg, (a * 0.04) ** 2)
+    mesh = mesh.with_boundaries(
+        {"particle0": mesh.boundaries["inner"], "wall": mesh.boundaries["outer"]}
+    )
+    return TaylorHood(mesh), 0.5 * n_seg * a**2 * np.sin(2 * np.pi / n_seg)
+
+
+def resumed_between_checkpoints(scene, tmp_path, k: int):
+    """``(uninterrupted history, resumed history)``: ``scene`` run through, and run again
+    with a checkpoint written after step ``k`` (where the run writes none, as SIGTERM
+    does) and resumed from it."""
+    from contextlib import closing
+
+    from skfem_granular.simulation import Simulation, checkpoint
+
+    ref = Simulation(scene, output_dir=tmp_path / "ref").run(progress=False).history
+    sim = Simulation(scene, output_dir=tmp_path / "part")
+    with closing(sim.evolve()) as steps:
+        for i, _ in enumerate(steps, start=1):
+            if i == k:
+                checkpoint.save(sim, i, None)
+                break
+    return ref, Simulation.resume(tmp_path / "part").run(progress=False).history

@@ -288,20 +288,11 @@ def test_moving_mesh_checkpoint_at_any_step_resumes_bit_for_bit(tmp_path):
     one): the resumed ALE run rebuilds the factorisation where the writer made it, so it
     equals the uninterrupted run (before: refactorising on the moved mesh changed the
     chord iterates at round-off, the angle at 1e-3 of its 1e-20 size)."""
-    from contextlib import closing
-
-    from skfem_granular.simulation import checkpoint
+    from helpers import resumed_between_checkpoints
 
     base = Scene.from_toml(SCENES / "single_particle.toml")
     sc = replace(base, time=replace(base.time, t_end=3e-4), mesh_motion="ale")
-    ref = Simulation(sc, output_dir=tmp_path / "ref").run(progress=False).history
-    sim = Simulation(sc, output_dir=tmp_path / "part")
-    with closing(sim.evolve()) as steps:
-        for k, _ in enumerate(steps, start=1):
-            if k == 13:
-                checkpoint.save(sim, k, None)
-                break
-    res = Simulation.resume(tmp_path / "part").run(progress=False).history
+    ref, res = resumed_between_checkpoints(sc, tmp_path, 13)
     for c in ("vy", "angle", "omega", "Fy", "torque"):
         assert np.array_equal(getattr(ref, c), getattr(res, c)), c
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from helpers import annulus, box, regular_polygon
+from helpers import annulus, box, regular_polygon, released_cylinder
 
 import skfem_granular as sg
 from skfem_granular.coupled import (
@@ -22,12 +22,7 @@ N_SEG = 64
 @pytest.fixture(scope="module")
 def released():
     """A cylinder at rest inside a fixed concentric cylinder (water)."""
-    mesh = annulus(A_IN, B_OUT, N_SEG, 2 * N_SEG, (A_IN * 0.04) ** 2)
-    mesh = mesh.with_boundaries(
-        {"particle0": mesh.boundaries["inner"], "wall": mesh.boundaries["outer"]}
-    )
-    area = 0.5 * N_SEG * A_IN**2 * np.sin(2 * np.pi / N_SEG)
-    return sg.TaylorHood(mesh), area
+    return released_cylinder(A_IN, B_OUT, N_SEG)
 
 
 def added_mass_acceleration(rho_p, rho_f, a, b, g):

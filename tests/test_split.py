@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from helpers import annulus
+from helpers import released_cylinder, resumed_between_checkpoints
 
 import skfem_granular as sg
 from skfem_granular.coupled import MonolithicCoupling, RigidBodies, StepProblem
@@ -21,12 +21,7 @@ N_SEG = 64
 @pytest.fixture(scope="module")
 def released():
     """A cylinder at rest inside a fixed concentric cylinder (water)."""
-    mesh = annulus(A_IN, B_OUT, N_SEG, 2 * N_SEG, (A_IN * 0.04) ** 2)
-    mesh = mesh.with_boundaries(
-        {"particle0": mesh.boundaries["inner"], "wall": mesh.boundaries["outer"]}
-    )
-    area = 0.5 * N_SEG * A_IN**2 * np.sin(2 * np.pi / N_SEG)
-    return sg.TaylorHood(mesh), area
+    return released_cylinder(A_IN, B_OUT, N_SEG)
 
 
 def _coupling(space, area, rho_p, cls, **kw):
@@ -142,20 +137,9 @@ def test_checkpoint_at_any_step_resumes_bit_for_bit(tmp_path):
     """A checkpoint between two steps (as SIGTERM writes one): the resumed split run
     factorises the projection where the writer held it, so its GMRES iterates, and the
     run, are the uninterrupted run's."""
-    from contextlib import closing
-
-    from skfem_granular.simulation import checkpoint
-
     base = Scene.bundled("single_particle")
     sc = replace(base, coupling="split", time=replace(base.time, t_end=3e-4))
-    ref = Simulation(sc, output_dir=tmp_path / "ref").run(progress=False).history
-    sim = Simulation(sc, output_dir=tmp_path / "part")
-    with closing(sim.evolve()) as steps:
-        for k, _ in enumerate(steps, start=1):
-            if k == 13:
-                checkpoint.save(sim, k, None)
-                break
-    res = Simulation.resume(tmp_path / "part").run(progress=False).history
+    ref, res = resumed_between_checkpoints(sc, tmp_path, 13)
     for c in ("vy", "angle", "omega", "Fy", "torque"):
         assert np.array_equal(getattr(ref, c), getattr(res, c)), c
 
