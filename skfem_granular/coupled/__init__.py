@@ -4,6 +4,10 @@
   (what both couplings share: boundary DOFs, lever arms, consistent forces);
 - :mod:`~skfem_granular.coupled.monolithic`: fluid + rigid-body velocities in one BDF2/Newton
   system (the default; stable for every density ratio);
+- :mod:`~skfem_granular.coupled.split`: pressure correction with the rigid velocities
+  implicit in the projection (:mod:`~skfem_granular.coupled.rigid_projection`): no coupled
+  factorisation, for many grains; :mod:`~skfem_granular.coupled.reduced`: the rigid-body
+  prolongation both solve on;
 - :mod:`~skfem_granular.coupled.partitioned`: the paper's staggered scheme, for comparison;
 - :mod:`~skfem_granular.coupled.transfer`: how far particles moved since the mesh was
   built, and fields moved onto a new mesh;
@@ -26,11 +30,12 @@ from .monolithic import MonolithicCoupling
 from .partitioned import PartitionedCoupling, Staggering
 from .problem import StepProblem, StepSolution
 from .rigid import CorrectorOptions, RigidBodies, RigidParticles
+from .split import SplitCoupling, SplitOptions
 from .state import CoupledState, StepReport
 from .stepper import CoupledStepper, SimulationError
 from .transfer import FieldTransfer, lag
 
 __all__ = ["CorrectorOptions", "CoupledState", "CoupledStepper", "FieldTransfer",
            "MonolithicCoupling", "PartitionedCoupling", "RigidBodies", "RigidParticles",
-           "Staggering", "SimulationError", "StepProblem",
+           "SplitCoupling", "SplitOptions", "Staggering", "SimulationError", "StepProblem",
            "StepReport", "StepSolution", "lag"]

@@ -134,7 +134,7 @@ class MonolithicCoupling(ReducedRigid):
         J = self.op.linear_matrix(A_uu) if x is None else self.op.jacobian(x, a0, w_mesh=w)
         Jz = (self.ET @ J @ self.E).tocsr()
         diag = np.zeros(self.nz)
-        diag[self.rigid_slice] = a0 * self._inertia_diag()
+        diag[self.rigid_slice] = a0 * self.inertia_diag()
         Jz = (Jz + sp.diags(diag)).tocsr()
         # sorted in place: the solver keeps a canonical matrix as it is, where it would
         # copy and sort it (the peak, SuperLU's, measured the same either way)
@@ -174,7 +174,7 @@ class MonolithicCoupling(ReducedRigid):
         A_uu = self.factors.A_uu if A_uu is None else A_uu
         Rf = self.op.residual(x, rhs_u=rhs_u, A_uu=A_uu, w_mesh=self.w_mesh)
         G = self.ET @ Rf
-        G[self.rigid_slice] += (self.factors.a0 * self._inertia_diag() * z[self.rigid_slice]
+        G[self.rigid_slice] += (self.factors.a0 * self.inertia_diag() * z[self.rigid_slice]
                                 - rigid_rhs)
         return G, Rf, x
 
@@ -186,11 +186,11 @@ class MonolithicCoupling(ReducedRigid):
         step are part of the iteration (the chord operator stays the factorised one).
         """
         pr = problem
-        xi_guess = self._impose(pr.xi_imposed, pr.xi_n, pr.xi_guess)
+        xi_guess = self.impose(pr.xi_imposed, pr.xi_n, pr.xi_guess)
         a0 = pr.bdf2.a0
         self.reference_op.time = self.op.time = pr.t_new  # where user terms are assembled
         hist_u = pr.bdf2.history(pr.u_n, pr.u_prev)
-        rigid_rhs = self._rigid_rhs(pr.bdf2.history(pr.xi_n, pr.xi_prev), pr.F_ext, pr.T_ext)
+        rigid_rhs = self.rigid_rhs(pr.bdf2.history(pr.xi_n, pr.xi_prev), pr.F_ext, pr.T_ext)
         # a new factorisation: the Newton Jacobian at the first iterate if the last one was
         newton_first = (KEEP_NEWTON_OPERATOR and self.factors.a0 != a0
                         and self.factors.newton_operator and not self.op.linear)
@@ -198,8 +198,8 @@ class MonolithicCoupling(ReducedRigid):
             self.factors.operator(a0)
         mesh = _IterateMesh(self, pr.geometry, a0, hist_u)
         mesh.follow(pr.xi_n if xi_guess is None else xi_guess)
-        x_D = self.imposed_values(self.x_dirichlet(pr.t_new), self._xi_imposed)
-        z = self._first_iterate(pr.u_n if pr.u_guess is None else pr.u_guess, pr.p_guess,
+        x_D = self.imposed_values(self.x_dirichlet(pr.t_new), self.xi_imposed)
+        z = self.first_iterate(pr.u_n if pr.u_guess is None else pr.u_guess, pr.p_guess,
                                 pr.xi_n if xi_guess is None else xi_guess)
         if newton_first:
             self.factorize_jacobian(self.E @ z + x_D, a0)  # booked as assembly, factorisation

@@ -25,7 +25,7 @@ class ReducedRigid(RigidParticles):
                  convection: bool = True, terms=None):
         super().__init__(space, fluid, walls, bodies, convection=convection, terms=terms)
         # the imposed particles' rigid velocities of the step
-        self._xi_imposed: np.ndarray | None = None
+        self.xi_imposed: np.ndarray | None = None
         # mesh velocity of a moving mesh (None: fixed mesh)
         self.w_mesh: np.ndarray | None = None
         self._build_prolongation()
@@ -51,7 +51,7 @@ class ReducedRigid(RigidParticles):
         # "velocity-like" unknowns come first; imposed particles have no rigid unknowns
         self.nu_z = u_free.size + r * self.free_particles.size
         self.nz = self.nu_z + p_free.size
-        self._u_free, self._p_free = u_free, p_free
+        self.u_free, self.p_free = u_free, p_free
         self.rigid_slice = slice(u_free.size, self.nu_z)
         self._assemble_prolongation()
 
@@ -64,7 +64,7 @@ class ReducedRigid(RigidParticles):
             self.E.data[self._lever_slots[0]] = levers
             self.ET.data[self._lever_slots[1]] = levers
             return
-        u_free, p_free = self._u_free, self._p_free
+        u_free, p_free = self.u_free, self.p_free
         r = self.ndof_rigid
         rows = [u_free, p_free]
         cols = [np.arange(u_free.size), self.nu_z + np.arange(p_free.size)]
@@ -127,8 +127,8 @@ class ReducedRigid(RigidParticles):
         xi = z[self.rigid_slice].reshape(free.size, self.ndof_rigid).T
         out = np.zeros((3, self.K))
         out[: self.ndof_rigid, free] = xi
-        if self._xi_imposed is not None:
-            out[:, self.imposed] = self._xi_imposed[:, self.imposed]
+        if self.xi_imposed is not None:
+            out[:, self.imposed] = self.xi_imposed[:, self.imposed]
         return out
 
     def _rigid_vector(self, xi3: np.ndarray) -> np.ndarray:
@@ -150,33 +150,33 @@ class ReducedRigid(RigidParticles):
         return z
 
     # ------------------------------------------------------------------ algebra
-    def _inertia_diag(self) -> np.ndarray:
+    def inertia_diag(self) -> np.ndarray:
         m = np.stack([self.mass, self.mass, self.inertia])[: self.ndof_rigid]
         return m[:, self.free_particles].T.ravel()
 
-    def _impose(self, xi_imposed, xi_n, xi_guess):
+    def impose(self, xi_imposed, xi_n, xi_guess):
         """Record the imposed particles' velocities at the step's end (Dirichlet data on their
         outlines) and put them into the first guess, which is returned."""
-        self._xi_imposed = None
+        self.xi_imposed = None
         if not self.imposed.any():
             return xi_guess
         if xi_imposed is None:
             raise ValueError(f"{type(self).__name__}.step: xi_imposed (3, K) is required: "
                              "the coupling has particles with a prescribed motion")
-        self._xi_imposed = np.array(xi_imposed, dtype=float).reshape(3, self.K)
+        self.xi_imposed = np.array(xi_imposed, dtype=float).reshape(3, self.K)
         # the imposed particles where their motion puts them, from the first mesh on
         xi_guess = np.array(xi_n if xi_guess is None else xi_guess, dtype=float)
-        xi_guess[:, self.imposed] = self._xi_imposed[:, self.imposed]
+        xi_guess[:, self.imposed] = self.xi_imposed[:, self.imposed]
         return xi_guess
 
-    def _rigid_rhs(self, hist_xi, F_ext, T_ext) -> np.ndarray:
+    def rigid_rhs(self, hist_xi, F_ext, T_ext) -> np.ndarray:
         """The rigid rows' right-hand side: external forces minus the BDF2 history's
         inertia ``m (a1 xi_n + a2 xi_prev)``."""
         m3 = np.stack([self.mass, self.mass, self.inertia])
         ext = np.vstack([F_ext, T_ext[None, :]])
         return self._rigid_vector(ext - m3 * hist_xi)
 
-    def _first_iterate(self, u, p, xi) -> np.ndarray:
+    def first_iterate(self, u, p, xi) -> np.ndarray:
         """The corrector's first iterate from velocity, pressure (or zeros) and rigid guesses."""
         x0 = np.zeros(self.space.N)
         x0[: self.space.nu] = u

@@ -10,8 +10,9 @@ saddle-point matrix. In the unknowns ``z = (u_free, xi)`` of
    M_b] z~ = ...`` for the fluid velocity and the grains' rigid velocities together (the
    viscous coupling implicit), by BiCGStab with a Jacobi preconditioner, matrix-free
    (conjugate gradients for Stokes on a fixed mesh: then it is symmetric).
-2. **Projection.** With ``H = c rho diag(M)`` (:data:`LUMPING`), ``C = B E_Gamma`` (the
-   pressure's coupling to the grains' rigid modes) and ``M_eff = M_b + E_Gamma^T H E_Gamma``::
+2. **Projection** (:mod:`~skfem_granular.coupled.rigid_projection`). With ``H = c rho
+   diag(M)``, ``C = B E_Gamma`` (the pressure's coupling to the grains' rigid modes) and
+   ``M_eff = M_b + E_Gamma^T H E_Gamma``::
 
        [ B_i H_i^-1 B_i^T   C      ] [psi]   [B u~]
        [ C^T               -M_eff  ] [ y ] = [ 0  ]
@@ -48,16 +49,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..fluid.errors import ConvergenceError
-from ..fluid.ordering import minimum_degree
 from .problem import StepProblem, StepSolution
 from .reduced import ReducedRigid
 from .rigid import RigidBodies
-
-#: The projection's velocity mass ``H = LUMPING rho diag(M)``: the pressure
-#: extrapolation of second order is stable for ``H`` below about ``0.5-0.9 diag(M)`` and
-#: unstable for the row-sum and HRZ lumpings (design page, measured).
-LUMPING = 0.85
+from .rigid_projection import RigidProjection, krylov
 
 #: The factor of the rotational pressure term (2: symmetric-gradient viscous form).
 ROTATIONAL = 2.0
@@ -115,14 +110,19 @@ class SplitCoupling(ReducedRigid):
                  convection: bool = True, options: SplitOptions | None = None, terms=None):
         super().__init__(space, fluid, walls, bodies, convection=convection, terms=terms)
         self.options = SplitOptions() if options is None else options
-        self._ordering: np.ndarray | None = None
-        # (LU, vertices it was made on, centres) of the projection
-        self._factors: tuple[spla.SuperLU, np.ndarray, np.ndarray] | None = None
-        self._refactor_due = False
-        self.counts = {"factorizations": 0, "predictor_iterations": 0,
-                       "projection_iterations": 0}
+        o = self.options
+        self.projection = RigidProjection(self, o.projection_rtol, o.max_iterations,
+                                          o.refactor_after)
+        self.predictor_iterations = 0
 
     # ------------------------------------------------------------------ the stepper's calls
+    @property
+    def counts(self) -> dict:
+        """Projection factorisations, predictor and projection iterations so far."""
+        return {"factorizations": self.projection.factorizations,
+                "predictor_iterations": self.predictor_iterations,
+                "projection_iterations": self.projection.iterations}
+
     def factor_counts(self) -> dict:
         """Projection factorisations on this mesh (``jacobian_refreshes``: always 0)."""
         return {"factorizations": self.counts["factorizations"], "jacobian_refreshes": 0}
@@ -145,16 +145,17 @@ class SplitCoupling(ReducedRigid):
 
     def forget_factorization(self) -> None:
         """Factorise the projection anew on the next step."""
-        self._factors = None
+        self.projection.forget()
 
     def factor_record(self) -> dict:
         """Where the projection's factorisation was made (``factor_a0`` 1.0 marks one;
         None: none held), for a checkpoint."""
-        if self._factors is None:
+        held = self.projection.record()
+        if held is None:
             return {"factor_a0": None, "factor_nodes": None, "factor_centers": None,
                     "factor_x": None, "factor_w": None}
-        return {"factor_a0": 1.0, "factor_nodes": self._factors[1],
-                "factor_centers": self._factors[2], "factor_x": None, "factor_w": None}
+        return {"factor_a0": 1.0, "factor_nodes": held[0], "factor_centers": held[1],
+                "factor_x": None, "factor_w": None}
 
     def refactor(self, record: dict, reference_space) -> None:
         """Factorise the projection where :meth:`factor_record` says it was."""
@@ -162,99 +163,7 @@ class SplitCoupling(ReducedRigid):
             return
         self.move(reference_space.moved(record["factor_nodes"]), record["factor_centers"],
                   None)
-        self._factorize()
-
-    # ------------------------------------------------------------------ the projection
-    def _lumped_mass(self) -> np.ndarray:
-        """``H``: the projection's velocity mass on the current mesh (velocity DOFs)."""
-        return LUMPING * self.fluid.density * self.space.M.diagonal()
-
-    def _projection_matrix(self) -> sp.csr_matrix:
-        """``[[B_i H_i^-1 B_i^T, C], [C^T, -M_eff]]`` on the current mesh: ``B`` on the
-        free pressures and velocities, its coupling ``C = B E_Gamma`` to the rigid
-        unknowns, and their mass ``M_eff`` with the fluid's lumped on their outlines."""
-        H = self._lumped_mass()
-        nu = self.space.nu
-        B = sp.csr_matrix(self.space.B)[self._p_free - nu]
-        E_G = self.E[:nu, self.rigid_slice]
-        C = (B @ E_G).tocsr()
-        M_eff = E_G.T @ sp.diags(H) @ E_G + sp.diags(self._inertia_diag())
-        B_i = B[:, self._u_free]
-        S = B_i @ sp.diags(1.0 / H[self._u_free]) @ B_i.T
-        return sp.bmat([[S, C], [C.T, -M_eff]], format="csr")
-
-    def _projection_operator(self) -> spla.LinearOperator:
-        """:meth:`_projection_matrix` on the current mesh as products with ``B``, ``B^T``
-        and ``E`` (no matrix is built: a moved mesh's GMRES needs only its products)."""
-        sp_ = self.space
-        nu, nz, rig = sp_.nu, self.nz, self.rigid_slice
-        H = self._lumped_mass()
-        H_inv = np.zeros(nu)
-        H_inv[self._u_free] = 1.0 / H[self._u_free]
-        E_G = self.E[:nu, rig]
-        M_eff = (E_G.T @ sp.diags(H) @ E_G + sp.diags(self._inertia_diag())).tocsr()
-        B, B_T = sp_.B, sp_.B.T
-        p_rows = self._p_free - nu
-        n_p = p_rows.size
-
-        def matvec(v):
-            psi = np.zeros(sp_.N - nu)
-            psi[p_rows] = v[:n_p]
-            g = B_T @ psi
-            z = np.zeros(nz)
-            z[rig] = v[n_p:]
-            top = (B @ (H_inv * g + (self.E @ z)[:nu]))[p_rows]
-            bottom = (self.ET @ np.concatenate([g, np.zeros(sp_.N - nu)]))[rig] - M_eff @ v[n_p:]
-            return np.concatenate([top, bottom])
-
-        n = n_p + M_eff.shape[0]
-        return spla.LinearOperator((n, n), matvec=matvec)
-
-    def _projection_ordering(self) -> np.ndarray:
-        """Minimum degree on the projection's graph: its unknowns (free pressures, rigid
-        velocities) adjacent when they share a velocity DOF (computed once per mesh)."""
-        if self._ordering is None:
-            nu = self.space.nu
-            Bp = abs(sp.csr_matrix(self.space.B)[self._p_free - nu]).T.tocsr()
-            E_G = abs(self.E[:nu, self.rigid_slice])
-            self._ordering = minimum_degree(sp.hstack([Bp, E_G], format="csr"))
-        return self._ordering
-
-    def _factorize(self) -> None:
-        t0 = time.perf_counter()
-        P = self._projection_matrix()
-        perm = self._projection_ordering()
-        lu = spla.splu(P[perm][:, perm].tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                       options=dict(SymmetricMode=True))
-        self._factors = (lu, self.space.mesh.p.copy(), self.centers.copy())
-        self._refactor_due = False
-        self.counts["factorizations"] += 1
-        self.timings["factorization"] += time.perf_counter() - t0
-
-    def _apply_factors(self, b: np.ndarray) -> np.ndarray:
-        assert self._factors is not None and self._ordering is not None
-        perm = self._ordering
-        x = np.empty_like(b)
-        x[perm] = self._factors[0].solve(np.ascontiguousarray(b[perm]))
-        return x
-
-    def _project(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(psi, y, H)``: the projection's solution for the divergence ``r`` (free
-        pressures) on the current mesh, and the velocity mass ``H`` it used."""
-        if self._factors is None:
-            self._factorize()
-        assert self._factors is not None
-        b = np.concatenate([r, np.zeros(self.nu_z - self.n_ufree)])
-        if np.array_equal(self._factors[1], self.space.mesh.p):
-            sol = self._apply_factors(b)
-        else:  # a moved mesh: the held factors precondition the current operator
-            pre = spla.LinearOperator((b.size, b.size), matvec=self._apply_factors)
-            sol, its = _krylov(spla.gmres, self._projection_operator(), b, pre,
-                               self.options.projection_rtol, self.options.max_iterations,
-                               restart=30, callback_type="pr_norm")
-            self.counts["projection_iterations"] += its
-            self._refactor_due = its > self.options.refactor_after
-        return sol[: r.size], sol[r.size:], self._lumped_mass()
+        self.projection.factorize()
 
     # ------------------------------------------------------------------ the predictor
     def _predictor(self, A: sp.spmatrix, G: np.ndarray, a0: float,
@@ -263,7 +172,7 @@ class SplitCoupling(ReducedRigid):
         unknowns), Jacobi-preconditioned: by conjugate gradients, or BiCGStab when ``A``
         holds the convection (not ``symmetric``)."""
         nu, n, nf = self.space.nu, self.nu_z, self.n_ufree
-        rigid = a0 * self._inertia_diag()
+        rigid = a0 * self.inertia_diag()
         z = np.zeros(self.nz)
         x = np.zeros(self.space.N)
 
@@ -275,21 +184,21 @@ class SplitCoupling(ReducedRigid):
             return out
 
         diag = np.empty(n)
-        diag[:nf] = A.diagonal()[self._u_free]
+        diag[:nf] = A.diagonal()[self.u_free]
         E_G = self.E[:nu, self.rigid_slice]
         diag[nf:] = np.asarray(E_G.multiply(A @ E_G).sum(axis=0)).ravel() + rigid
         op = spla.LinearOperator((n, n), matvec=matvec)
         pre = spla.LinearOperator((n, n), matvec=lambda v: v / diag)
         rtol, maxiter = self.options.predictor_rtol, self.options.max_iterations
         if symmetric:
-            dz, its = _krylov(spla.cg, op, -G, pre, rtol, maxiter)
+            dz, its = krylov(spla.cg, op, -G, pre, rtol, maxiter)
         else:
-            dz, its = _krylov(spla.bicgstab, op, -G, pre, rtol, maxiter, strict=False)
+            dz, its = krylov(spla.bicgstab, op, -G, pre, rtol, maxiter, strict=False)
             if np.linalg.norm(G + op @ dz) > rtol * np.linalg.norm(G):  # a breakdown
-                dz, more = _krylov(spla.gmres, op, -G, pre, rtol, maxiter, x0=dz, restart=50,
+                dz, more = krylov(spla.gmres, op, -G, pre, rtol, maxiter, x0=dz, restart=50,
                                    callback_type="pr_norm")
                 its += more
-        self.counts["predictor_iterations"] += its
+        self.predictor_iterations += its
         return dz
 
     # ------------------------------------------------------------------ the step
@@ -309,19 +218,19 @@ class SplitCoupling(ReducedRigid):
         pr = problem
         t0 = time.perf_counter()
         a0 = pr.bdf2.a0
-        self._impose(pr.xi_imposed, pr.xi_n, pr.xi_guess)
+        self.impose(pr.xi_imposed, pr.xi_n, pr.xi_guess)
         self.reference_op.time = self.op.time = pr.t_new
         u_star, xi_star, p_hat = _extrapolate(pr, self.space.N - self.space.nu)
-        if self._xi_imposed is not None:
-            xi_star[:, self.imposed] = self._xi_imposed[:, self.imposed]
+        if self.xi_imposed is not None:
+            xi_star[:, self.imposed] = self.xi_imposed[:, self.imposed]
         self._follow(pr.geometry, xi_star)
         ctx = _StepContext(
             a0=a0, A=self.op.velocity_block(a0),
             rhs_u=-self.fluid.density * (self.space.M @ pr.bdf2.history(pr.u_n, pr.u_prev)),
-            rigid_rhs=self._rigid_rhs(pr.bdf2.history(pr.xi_n, pr.xi_prev), pr.F_ext,
+            rigid_rhs=self.rigid_rhs(pr.bdf2.history(pr.xi_n, pr.xi_prev), pr.F_ext,
                                       pr.T_ext),
-            x_D=self.imposed_values(self.x_dirichlet(pr.t_new), self._xi_imposed))
-        z = self._first_iterate(u_star, p_hat, xi_star)
+            x_D=self.imposed_values(self.x_dirichlet(pr.t_new), self.xi_imposed))
+        z = self.first_iterate(u_star, p_hat, xi_star)
         ctx = self._with_convection(ctx, z)
         self.timings["assembly"] += time.perf_counter() - t0
         t1 = time.perf_counter()
@@ -337,8 +246,8 @@ class SplitCoupling(ReducedRigid):
         x[self.space.nu:] = self._pressure(p_hat, None if cold else div)
         F, T = self._forces(pr, xi, x, ctx)
         self._follow(pr.geometry, xi)  # the mesh where the solved velocities put the grains
-        if self._refactor_due:  # here, so that a checkpoint's record holds where
-            self._factorize()
+        if self.projection.refactor_due:  # here, so that a checkpoint's record holds where
+            self.projection.factorize()
         self._last = (ctx.rhs_u, x, ctx.A)
         self.timings["forces"] += time.perf_counter() - t2
         return StepSolution(x=x, xi=xi, force=F, torque=T, iterations=iterations)
@@ -370,7 +279,7 @@ class SplitCoupling(ReducedRigid):
         x[nu:] = p_hat
         Rf = self.op.residual(x, rhs_u=ctx.rhs_u, A_uu=ctx.A, w_mesh=self.w_mesh)
         G = self.ET @ Rf
-        G[nf:n] += ctx.a0 * self._inertia_diag() * z[nf:n] - ctx.rigid_rhs
+        G[nf:n] += ctx.a0 * self.inertia_diag() * z[nf:n] - ctx.rigid_rhs
         return G, Rf, x
 
     def _split_solve(self, G: np.ndarray, ctx: _StepContext):
@@ -380,11 +289,11 @@ class SplitCoupling(ReducedRigid):
         nu, n, nf = self.space.nu, self.nu_z, self.n_ufree
         dz = self._predictor(ctx.P, G[:n], ctx.a0, ctx.P is ctx.A)
         ddiv = self.space.B @ (self.E @ np.concatenate([dz, np.zeros(self.nz - n)]))[:nu]
-        r = ddiv[self._p_free - nu] + G[n:]
-        psi_free, y, H = self._project(r)
+        r = ddiv[self.p_free - nu] + G[n:]
+        psi_free, y, H = self.projection.solve(r)
         psi = np.zeros(self.space.N - nu)
-        psi[self._p_free - nu] = psi_free
-        dz[:nf] -= (self.space.B.T @ psi)[self._u_free] / H[self._u_free]
+        psi[self.p_free - nu] = psi_free
+        dz[:nf] -= (self.space.B.T @ psi)[self.u_free] / H[self.u_free]
         dz[nf:] -= y
         return dz, ctx.a0 * psi, ddiv
 
@@ -409,8 +318,8 @@ class SplitCoupling(ReducedRigid):
         ``start_krylov`` iterations (many grains: the split's start is then improved, not
         converged). Returns the GMRES iterations."""
         nu, n, nz = self.space.nu, self.nu_z, self.nz
-        p_rows = self._p_free - nu
-        rigid = ctx.a0 * self._inertia_diag()
+        p_rows = self.p_free - nu
+        rigid = ctx.a0 * self.inertia_diag()
         total = 0
         for _ in range(self.options.start_iterations):
             G, _, x = self._residual(z, p_hat, ctx)
@@ -427,7 +336,7 @@ class SplitCoupling(ReducedRigid):
 
             J = spla.LinearOperator((nz, nz), matvec=jacobian)
             M = spla.LinearOperator((nz, nz), matvec=precondition)
-            w, its = _krylov(spla.gmres, J, -G, M, self.options.newton_rtol,
+            w, its = krylov(spla.gmres, J, -G, M, self.options.newton_rtol,
                              1, strict=False, restart=self.options.start_krylov,
                              callback_type="pr_norm")  # one cycle: start_krylov at most
             total += its
@@ -496,22 +405,3 @@ def _extrapolate(pr: StepProblem, n_p: int):
         w = pr.bdf2.dt / pr.dt_prev
         p = p + w * (p - pr.p_prev)
     return u, xi, p
-
-
-def _krylov(method, A, b, M, rtol: float, maxiter: int, strict: bool = True,
-            **options) -> tuple[np.ndarray, int]:
-    """``method`` (scipy's ``cg`` or ``gmres``) from zero; returns the solution and its
-    iterations; raises ConvergenceError if it does not reach ``rtol`` (``strict``)."""
-    its = [0]
-
-    def count(_):
-        its[0] += 1
-
-    x, info = method(A, b, M=M, rtol=rtol, atol=0.0, maxiter=maxiter, callback=count,
-                     **options)
-    if info < 0 and np.linalg.norm(b - A @ x) <= rtol * np.linalg.norm(b):
-        info = 0  # a breakdown (BiCGStab's) at a solution that already meets the tolerance
-    if info != 0 and strict:
-        raise ConvergenceError(f"split coupling: {method.__name__} did not converge in "
-                               f"{its[0]} iterations")
-    return x, its[0]
