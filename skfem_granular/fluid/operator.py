@@ -296,14 +296,15 @@ class NavierStokesOperator:
         # scipy's sparse operations compute them (exact zeros dropped at the end), without
         # merging patterns (1000 grains: 2 s a difference, 2 s a sum); a Stokes operator
         # on a fixed mesh never builds the kernel
-        kern, u = self.space.convection, x[: self.space.nu]
-        values: np.ndarray | None
+        u = x[: self.space.nu]
+        values: np.ndarray | None = None
         if self.convection and w_mesh is not None and not newton:  # N(u) - N(w) = N(u - w)
-            values = kern.jacobian_data(u - w_mesh, newton=False)
+            values = self.space.convection.jacobian_data(u - w_mesh, newton=False)
         else:
-            values = kern.jacobian_data(u, newton=newton) if self.convection else None
+            if self.convection:
+                values = self.space.convection.jacobian_data(u, newton=newton)
             if w_mesh is not None:
-                Nw = kern.jacobian_data(w_mesh, newton=False)
+                Nw = self.space.convection.jacobian_data(w_mesh, newton=False)
                 values = -Nw if values is None else values - Nw
         if values is not None:
             values *= self.fluid.density
