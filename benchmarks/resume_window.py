@@ -39,9 +39,10 @@ def commit_of(path: Path) -> str:
     return r.stdout.strip() or "unknown"
 
 
-def window(run: Path, steps: int, coupling: str | None = None) -> dict:
+def window(run: Path, steps: int, coupling: str | None = None,
+           t_end: float | None = None) -> dict:
     """Resume a copy of ``run``'s checkpoint and time ``steps`` steps (``coupling``: on
-    another coupled solver than the run's)."""
+    another coupled solver than the run's; ``t_end``: past a finished run's end)."""
     import skfem_granular
     from skfem_granular.simulation import Simulation
 
@@ -52,7 +53,7 @@ def window(run: Path, steps: int, coupling: str | None = None) -> dict:
         if (run / "history.csv").exists():  # a checkpoint of version 4 follows its rows
             shutil.copy2(run / "history.csv", folder / "history.csv")
         w0, c0 = time.perf_counter(), time.process_time()
-        sim = Simulation.resume(folder, coupling=coupling)
+        sim = Simulation.resume(folder, t_end=t_end, coupling=coupling)
         resume = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
                   "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
         stepper = sim.stepper
@@ -92,6 +93,8 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=12)
     ap.add_argument("--coupling", choices=["monolithic", "split"], default=None,
                     help="continue on this coupled solver (default: the run's)")
+    ap.add_argument("--t-end", type=float, default=None,
+                    help="the resumed run's end (s), for a run that has finished")
     ap.add_argument("--out", type=Path, default=None,
                     help="JSON file the record is appended to (default: print only)")
     args = ap.parse_args(argv)
@@ -99,7 +102,7 @@ def main(argv=None) -> None:
         sys.exit(f"run: {args.run} has no checkpoint.npz")
     if args.steps < 1:
         sys.exit(f"--steps = {args.steps}: must be at least 1")
-    rec = window(args.run, args.steps, args.coupling)
+    rec = window(args.run, args.steps, args.coupling, args.t_end)
     print(json.dumps({k: v for k, v in rec.items() if k not in ("per_step", "dofs")}))
     if args.out is not None:
         # a file of another form (an interleaved comparison's "calls") keeps what it holds
