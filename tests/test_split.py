@@ -231,3 +231,31 @@ def test_settling_disk_on_the_split_path():
     assert -np.interp(0.5, t, vy) == pytest.approx(0.0555882, rel=1e-4)
     out = curves.compare_settling(t, y, vy, k, y_stop=2.5e-3, y0=0.04)
     assert out["t_floor"]["run"] == pytest.approx(0.753422, rel=1e-4)
+
+
+def test_a_dropped_split_coupling_is_freed_without_the_cycle_collector():
+    """A remeshed-away split coupling, its projection and factors and its space are freed
+    by reference counting (a cycle through the projection kept them until the cyclic
+    collector ran: a 200-grain column's peak memory grew 350-400 MB a remesh, 2.2 GB after
+    4 remeshes against 1.0 GB without it)."""
+    import gc
+    import weakref
+
+    from helpers import box, regular_polygon
+
+    mesh = box(0.0, 0.0, 1.0, 1.0, 0.05, hole=regular_polygon(12, 0.2, (0.5, 0.5)))
+    space = sg.TaylorHood(mesh)
+    c = SplitCoupling(space, sg.Fluid(1.0, 1.0), {"wall": (0.0, 0.0)},
+                      RigidBodies(np.array([[0.5], [0.5]]), [1.0], [1.0]))
+    c.step(StepProblem(bdf2=BDF2(1e-2), t_new=1e-2, u_n=np.zeros(space.nu),
+                       xi_n=np.zeros((3, 1)), F_ext=np.array([[0.0], [-1.0]]), T_ext=np.zeros(1)))
+    assert c.projection.factorizations == 1
+    alive = [weakref.ref(o) for o in (c, c.projection, space, c.op)]
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        del c, space
+        assert [r() is None for r in alive] == [True] * 4
+    finally:
+        if enabled:
+            gc.enable()
