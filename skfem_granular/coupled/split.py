@@ -166,13 +166,23 @@ class SplitCoupling(ReducedRigid):
         self.projection.factorize()
 
     # ------------------------------------------------------------------ the predictor
-    def _predictor(self, A: sp.spmatrix, G: np.ndarray, a0: float,
-                   symmetric: bool) -> np.ndarray:
-        """The correction ``dz`` solving ``[E^T A E + a0 M_b] dz = -G`` (velocity-like
-        unknowns), Jacobi-preconditioned: by conjugate gradients, or BiCGStab when ``A``
-        holds the convection (not ``symmetric``)."""
+    def _jacobi(self, A: sp.spmatrix, a0: float) -> np.ndarray:
+        """The diagonal of ``E^T A E + a0 M_b`` (velocity-like unknowns), once a step."""
+        nu, nf = self.space.nu, self.n_ufree
+        diag = np.empty(self.nu_z)
+        diag[:nf] = A.diagonal()[self.u_free]
+        E_G = self.E[:nu, self.rigid_slice]
+        diag[nf:] = (np.asarray(E_G.multiply(A @ E_G).sum(axis=0)).ravel()
+                     + a0 * self.inertia_diag())
+        return diag
+
+    def _predictor(self, ctx: _StepContext, G: np.ndarray) -> np.ndarray:
+        """The correction ``dz`` solving ``[E^T P E + a0 M_b] dz = -G`` (velocity-like
+        unknowns, ``P`` the step's predictor matrix), Jacobi-preconditioned: by conjugate
+        gradients, or BiCGStab when ``P`` holds the convection."""
+        A, diag, symmetric = ctx.P, ctx.jacobi, ctx.P is ctx.A
         nu, n, nf = self.space.nu, self.nu_z, self.n_ufree
-        rigid = a0 * self.inertia_diag()
+        rigid = ctx.a0 * self.inertia_diag()
         z = np.zeros(self.nz)
         x = np.zeros(self.space.N)
 
@@ -183,10 +193,6 @@ class SplitCoupling(ReducedRigid):
             out[nf:] += rigid * v[nf:]
             return out
 
-        diag = np.empty(n)
-        diag[:nf] = A.diagonal()[self.u_free]
-        E_G = self.E[:nu, self.rigid_slice]
-        diag[nf:] = np.asarray(E_G.multiply(A @ E_G).sum(axis=0)).ravel() + rigid
         op = spla.LinearOperator((n, n), matvec=matvec)
         pre = spla.LinearOperator((n, n), matvec=lambda v: v / diag)
         rtol, maxiter = self.options.predictor_rtol, self.options.max_iterations
@@ -232,9 +238,10 @@ class SplitCoupling(ReducedRigid):
             x_D=self.imposed_values(self.x_dirichlet(pr.t_new), self.xi_imposed))
         z = self.first_iterate(u_star, p_hat, xi_star)
         ctx = self._with_convection(ctx, z)
+        ctx = replace(ctx, jacobi=self._jacobi(ctx.P, a0))
         self.timings["assembly"] += time.perf_counter() - t0
         t1 = time.perf_counter()
-        _, div = self._correct(z, p_hat, ctx)
+        div = self._correct(z, p_hat, ctx)
         iterations = 1
         cold = pr.p_guess is None and self.options.start_iterations > 0
         if cold:
@@ -287,7 +294,7 @@ class SplitCoupling(ReducedRigid):
         coupled system for the residual ``-G`` (``dz`` velocity-like, ``dp`` all pressure
         DOFs), and ``B u~ - B u`` of the predicted correction."""
         nu, n, nf = self.space.nu, self.nu_z, self.n_ufree
-        dz = self._predictor(ctx.P, G[:n], ctx.a0, ctx.P is ctx.A)
+        dz = self._predictor(ctx, G[:n])
         ddiv = self.space.B @ (self.E @ np.concatenate([dz, np.zeros(self.nz - n)]))[:nu]
         r = ddiv[self.p_free - nu] + G[n:]
         psi_free, y, H = self.projection.solve(r)
@@ -301,14 +308,13 @@ class SplitCoupling(ReducedRigid):
         """One predictor-projection pass on the coupled residual at ``(z, p_hat)``, both
         updated in place (the pressure without the rotational term).
 
-        Returns the largest velocity update and ``B u~`` (all pressure DOFs) of the
-        predicted velocity ``u~``.
+        Returns ``B u~`` (all pressure DOFs) of the predicted velocity ``u~``.
         """
         G, Rf, _ = self._residual(z, p_hat, ctx)
         dz, dp, ddiv = self._split_solve(G, ctx)
         z[: self.nu_z] += dz
         p_hat += dp
-        return float(np.abs(dz).max()), Rf[self.space.nu:] + ddiv
+        return Rf[self.space.nu:] + ddiv
 
     def _converge(self, z: np.ndarray, p_hat: np.ndarray, ctx: _StepContext,
                   pr: StepProblem) -> int:
@@ -379,8 +385,8 @@ class SplitCoupling(ReducedRigid):
 @dataclass(frozen=True)
 class _StepContext:
     """What every pass of one step shares: ``a0``, the velocity block ``A`` (of the
-    residual) and the predictor's ``P`` (``A`` with the linearised convection), the
-    histories' right-hand sides and the Dirichlet values."""
+    residual), the predictor's ``P`` (``A`` with the linearised convection) and its
+    Jacobi diagonal, the histories' right-hand sides and the Dirichlet values."""
 
     a0: float
     A: sp.csr_matrix
@@ -388,6 +394,7 @@ class _StepContext:
     rigid_rhs: np.ndarray
     x_D: np.ndarray
     P: sp.csr_matrix | None = None
+    jacobi: np.ndarray | None = None
 
     def __post_init__(self):
         if self.P is None:  # the predictor's matrix: the velocity block without convection
