@@ -15,6 +15,7 @@ Usage::
     python benchmarks/resume_window.py out/collapse_matrix_n1000/loose_immersed_core0.9_s0 \\
         --steps 12 --out benchmarks/results/resume_window_loose.json
     python benchmarks/resume_window.py RUN --coupling split   # the window on the split solver
+    python benchmarks/resume_window.py RUN --mesh-repair none # remeshes instead of repairs
 """
 
 from __future__ import annotations
@@ -40,9 +41,10 @@ def commit_of(path: Path) -> str:
 
 
 def window(run: Path, steps: int, coupling: str | None = None,
-           t_end: float | None = None) -> dict:
+           t_end: float | None = None, mesh_repair: str | None = None) -> dict:
     """Resume a copy of ``run``'s checkpoint and time ``steps`` steps (``coupling``: on
-    another coupled solver than the run's; ``t_end``: past a finished run's end)."""
+    another coupled solver than the run's; ``t_end``: past a finished run's end;
+    ``mesh_repair``: another ``Scene.mesh_repair``)."""
     import skfem_granular
     from skfem_granular.simulation import Simulation
 
@@ -53,12 +55,14 @@ def window(run: Path, steps: int, coupling: str | None = None,
         if (run / "history.csv").exists():  # a checkpoint of version 4 follows its rows
             shutil.copy2(run / "history.csv", folder / "history.csv")
         w0, c0 = time.perf_counter(), time.process_time()
-        sim = Simulation.resume(folder, t_end=t_end, coupling=coupling)
+        sim = Simulation.resume(folder, t_end=t_end, coupling=coupling,
+                                mesh_repair=mesh_repair)
         resume = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
                   "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
         stepper = sim.stepper
         before = dict(getattr(stepper, "factor_counts", {}))
         remeshes0 = getattr(stepper, "remeshes", 0)
+        repairs0 = dict(getattr(stepper, "mesh_repairs", {}))
         per_step, dofs = [], []
         w_last, c_last = time.perf_counter(), time.process_time()
         for _t, _state in sim.evolve():
@@ -81,6 +85,15 @@ def window(run: Path, steps: int, coupling: str | None = None,
             "per_step": per_step,
             "dofs": dofs,
             "remeshes": getattr(stepper, "remeshes", 0) - remeshes0,
+            "mesh_repair": sim.scene.mesh_repair,
+            "repairs": {k: v - repairs0.get(k, 0)
+                        for k, v in getattr(stepper, "mesh_repairs", {}).items()},
+            # where the grains are at the end (the same for two versions doing the same
+            # arithmetic; within the run's own spread for two that do not)
+            "t": float(sim.stepper.state.t),
+            "grains_mean_vy": float(sim.dem.particles.v[1].mean()),
+            "grains_kinetic_energy": float(0.5 * (sim.dem.mass * (
+                sim.dem.particles.v[:2] ** 2).sum(axis=0)).sum()),
             "factor_counts": {k: after.get(k, 0) - before.get(k, 0) for k in after},
             "phases_s": {k: float(v) for k, v in sim.timings.items()},
             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -93,6 +106,8 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=12)
     ap.add_argument("--coupling", choices=["monolithic", "split"], default=None,
                     help="continue on this coupled solver (default: the run's)")
+    ap.add_argument("--mesh-repair", choices=["auto", "flips", "none"], default=None,
+                    help="continue with this mesh repair (default: the run's)")
     ap.add_argument("--t-end", type=float, default=None,
                     help="the resumed run's end (s), for a run that has finished")
     ap.add_argument("--out", type=Path, default=None,
@@ -102,7 +117,7 @@ def main(argv=None) -> None:
         sys.exit(f"run: {args.run} has no checkpoint.npz")
     if args.steps < 1:
         sys.exit(f"--steps = {args.steps}: must be at least 1")
-    rec = window(args.run, args.steps, args.coupling, args.t_end)
+    rec = window(args.run, args.steps, args.coupling, args.t_end, args.mesh_repair)
     print(json.dumps({k: v for k, v in rec.items() if k not in ("per_step", "dofs")}))
     if args.out is not None:
         # a file of another form (an interleaved comparison's "calls") keeps what it holds

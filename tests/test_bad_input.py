@@ -145,6 +145,8 @@ CLI = [
      ["mesh.gap_spacing", "only for kind 'field'"]),
     ("coupling-scheme", scene("[coupling]\nscheme = 'magic'\n"), [],
      ["coupling.scheme = 'magic'", "'monolithic', 'split' or 'partitioned'"]),
+    ("mesh-repair", scene("[coupling]\nmesh_repair = 'smooth'\n"), [],
+     ["coupling.mesh_repair = 'smooth'", "'auto', 'flips' or 'none'"]),
     ("remesh_fraction-zero", scene("[coupling]\nremesh_fraction = 0.0\n"), [],
      ["coupling.remesh_fraction = 0.0", "> 0 and <= 1"]),
     ("newton_tol-loose", scene("[coupling]\nnewton_tol = 0.01\n"), [],

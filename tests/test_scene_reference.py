@@ -192,6 +192,7 @@ SCENE_FIELDS = {"domain": ("domain", "box"), "wall_thickness": ("domain", "wall_
                 "remesh_fraction": ("coupling", "remesh_fraction"),
                 "mesh_motion": ("coupling", "mesh_motion"),
                 "remesh_travel": ("coupling", "remesh_travel"),
+                "mesh_repair": ("coupling", "mesh_repair"),
                 "newton_tol": ("coupling", "newton_tol"),
                 "output_dir": ("output", "directory"), "vtu_every": ("output", "vtu_every"),
                 "checkpoint_every": ("output", "checkpoint_every")}

@@ -18,11 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from .ale_rules import ALE_SLIDE_WALLS, REMESH_REASONS, remesh_reason, step_geometry
+from .ale_rules import ALE_MIN_ANGLE, ALE_SLIDE_WALLS, REMESH_REASONS, remesh_reason, step_geometry
 from .build import CoreSizes, build_coupling
 from .errors import SimulationError
 from .landing import landing_check
 from .mesh_motion import MeshMotion, mesh_quality
+from .mesh_repair import REPAIR_AHEAD, REPAIRABLE, flip_plan, transfer_by_flips
 from .state import CoupledState
 from .transfer import lag, transfer_histories
 from .wake import WakeGrading
@@ -68,6 +69,9 @@ class MeshKeeper:
         self.coupling_options = dict(coupling_options or {})
         self.remeshes = 0
         self.remesh_energy_ratios: list[float] = []
+        #: local repairs instead of remeshes (:meth:`repair`): ``done``, ``refused`` (a
+        #: remesh instead), ``flipped`` (edges, over all repairs)
+        self.repairs = {"done": 0, "refused": 0, "flipped": 0}
         #: why the moving mesh was remeshed, ``{reason: count}``; ``wake``: the first remesh
         #: after :attr:`wake_grading` found a wake
         self.remesh_reasons = dict.fromkeys((*REMESH_REASONS, "wake"), 0)
@@ -108,10 +112,12 @@ class MeshKeeper:
         return {k: v + self.coupling.factor_counts()[k]
                 for k, v in self.retired_factor_counts.items()}
 
-    def use(self, mesh, poses=None, since_remesh: int | None = None) -> None:
+    def use(self, mesh, poses=None, since_remesh: int | None = None,
+            motion: MeshMotion | None = None) -> None:
         """Make ``mesh`` the mesh in use, built for ``poses`` (default: the DEM's now), with
         a new coupling on it; ``since_remesh``: the steps the replaced mesh lived (a
-        short-lived mesh's Newton Jacobian carries over, :data:`NEWTON_CARRY_STEPS`)."""
+        short-lived mesh's Newton Jacobian carries over, :data:`NEWTON_CARRY_STEPS`);
+        ``motion``: its motion when already made (moving mesh)."""
         old = getattr(self, "coupling", None)
         if old is not None:  # keep the phase times and counts of the coupling being replaced
             for k, v in old.timings.items():
@@ -129,16 +135,21 @@ class MeshKeeper:
         self.reference_space = self.coupling.space
         self.mesh_poses = (np.vstack([dem.positions, dem.angles[None, :]]) if poses is None
                            else np.array(poses, dtype=float))
+        self.travel_poses = self.mesh_poses
         self.motion = None
         if self.ale:
-            nodes = [np.unique(built.facets[:, built.boundaries[f"particle{k}"]])
-                     for k in range(dem.n)]
-            self.motion = MeshMotion(built, nodes, self.mesh_poses, slide_walls=ALE_SLIDE_WALLS)
+            self.motion = motion or self._motion(built, self.mesh_poses)
         else:  # a fixed mesh's smallest angle, once (:meth:`note_quality`)
             import meshing
 
             self._built_angle = float(meshing.mesh_stats(built).min_angle)
         self.timings["assembly"] += time.perf_counter() - t0
+
+    def _motion(self, built, poses) -> MeshMotion:
+        """The motion of the mesh ``built`` (``skfem.MeshTri``) made for ``poses``."""
+        nodes = [np.unique(built.facets[:, built.boundaries[f"particle{k}"]])
+                 for k in range(self.dem.n)]
+        return MeshMotion(built, nodes, poses, slide_walls=ALE_SLIDE_WALLS)
 
     def step_geometry(self, state: CoupledState, bdf2, q_n, q_fixed):
         """The moving mesh's callback for one step (:func:`~.ale_rules.step_geometry`)."""
@@ -179,8 +190,9 @@ class MeshKeeper:
         return "moved" if np.any(moved > sc.remesh_fraction * self.cores.edge) else None
 
     def moved(self) -> np.ndarray:
-        """How far each particle's outline has moved from where the mesh was built (m)."""
-        dem, built = self.dem, self.mesh_poses
+        """How far each particle's outline has moved from where the mesh was built (m;
+        a repair keeps the mesh's grading, and this distance)."""
+        dem, built = self.dem, self.travel_poses
         return lag(built[:2], built[2], dem.positions, dem.angles, self.cores.radius)
 
     def replace(self, state: CoupledState, reason: str) -> CoupledState:
@@ -220,6 +232,50 @@ class MeshKeeper:
             self.remesh_energy_ratios.append(fluid_energy(self.scene, self.space, new.u_n) / e_old)
         self.timings["remeshing"] += time.perf_counter() - t0
         self.remeshes += 1
+        return new
+
+    def repair(self, state: CoupledState, reason: str) -> CoupledState | None:
+        """The state on the mesh in use with a few edges flipped
+        (:mod:`~.mesh_repair`), when that answers ``reason`` and no other reason is left;
+        None when it cannot (then :meth:`replace`). Counted in :attr:`repairs`."""
+        s, motion = state, self.motion
+        if (motion is None or reason not in REPAIRABLE or s.nodes_n is None
+                or not self.scene.repairs_mesh):
+            return None
+        t0 = time.perf_counter()
+        q = self.dem.particles.q
+        ahead = []
+        if s.q_prev is not None and s.dt_prev is not None:
+            step = (q - s.q_prev) * (self.scene.time.dt / s.dt_prev)
+            ahead = [motion.positions(q + k * step) for k in range(1, REPAIR_AHEAD + 1)]
+        t_new, changed = flip_plan(motion.t, s.nodes_prev, s.nodes_n, ahead)
+        if changed.size == 0 or any(  # a triangle the rule rejects is left: a new mesh
+                mesh_quality(p, t_new, motion.area_ref)[0] < ALE_MIN_ANGLE
+                for p in (s.nodes_n, *ahead[:1])):
+            self.repairs["refused"] += 1
+            self.timings["meshing"] += time.perf_counter() - t0
+            return None
+        from meshing.flips import with_triangles  # meshing: imported when a mesh is repaired
+
+        built = with_triangles(self.meshed.mesh, t_new, p=s.nodes_n)
+        new_motion = self._motion(built, q)
+        dt_ratio = None if s.dt_prev is None else self.scene.time.dt / s.dt_prev
+        left = remesh_reason(new_motion, s, self.moved(), q, dt_ratio, self.cores,
+                             self.scene.remesh_travel)
+        self.timings["meshing"] += time.perf_counter() - t0
+        if left is not None:
+            self.repairs["refused"] += 1
+            return None
+        old, travel = self.space, self.travel_poses
+        self.use(replace(self.meshed, mesh=built), poses=q, since_remesh=s.since_remesh,
+                 motion=new_motion)
+        self.travel_poses = travel
+        t0 = time.perf_counter()
+        new = replace(s, **transfer_by_flips(s, old, self.space, changed,
+                                             free=self.coupling.op.free), since_remesh=0)
+        self.timings["remeshing"] += time.perf_counter() - t0
+        self.repairs["done"] += 1
+        self.repairs["flipped"] += int(changed.size) // 2
         return new
 
     def _transfer(self, s: CoupledState, old, old_prev) -> CoupledState:

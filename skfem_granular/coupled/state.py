@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -46,6 +47,10 @@ class CoupledState:
         Moving mesh (ALE): vertex positions ``(2, nv)`` at ``t`` and ``t_{n-1}``
         (``nodes_prev`` None: the nodes were at rest before ``t``, as after a remesh).
     """
+
+    #: fields added after checkpoints were first written: read at their defaults from one
+    #: that lacks them
+    LATER_FIELDS: ClassVar[tuple[str, ...]] = ("p_prev",)
 
     u_n: np.ndarray
     p_n: np.ndarray | None

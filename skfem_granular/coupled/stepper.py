@@ -128,6 +128,9 @@ class CoupledStepper:
     remeshes = property(lambda self: self.keeper.remeshes, doc="Remeshes so far.")
     remesh_reasons = property(lambda self: self.keeper.remesh_reasons,
                               doc="Why the moving mesh was remeshed, ``{reason: count}``.")
+    mesh_repairs = property(lambda self: self.keeper.repairs,
+                            doc="Repairs of the moving mesh by edge flips instead of a "
+                                "remesh: ``done``, ``refused``, ``flipped`` (edges).")
     remesh_energy_ratios = property(
         lambda self: self.keeper.remesh_energy_ratios,
         doc="Fluid kinetic energy after / before each transfer onto a new mesh.")
@@ -180,11 +183,16 @@ class CoupledStepper:
         self.state = self.keeper.replace(self.state, reason)
 
     def remesh_if_needed(self) -> str | None:
-        """Remesh if the keeper gives a reason (:meth:`MeshKeeper.reason`), then once more
-        if a core landed (:meth:`MeshKeeper.landing`); returns the first reason or None."""
+        """Repair or remesh if the keeper gives a reason (:meth:`MeshKeeper.reason`,
+        :meth:`MeshKeeper.repair`), then remesh once more if a core landed
+        (:meth:`MeshKeeper.landing`); returns the first reason or None."""
         reason = self.keeper.reason(self.state)
         if reason is not None:
-            self.remesh(reason)
+            repaired = self.keeper.repair(self.state, reason)
+            if repaired is None:
+                self.remesh(reason)
+            else:
+                self.state = repaired
         self.state = self.keeper.landing(self.state, self.contacts_active)
         return reason
 
@@ -306,12 +314,13 @@ class CoupledStepper:
         k = self.keeper
         data = {"state": self.state, "mesh": k.meshed, "mesh_centers": k.mesh_poses[:2].copy(),
                 "flow_sizing": k.flow_sizing, "wake_grading": k.wake_grading,
-                "mesh_angles": k.mesh_poses[2].copy(),
+                "mesh_angles": k.mesh_poses[2].copy(), "travel_poses": k.travel_poses.copy(),
                 "coupling_centers": self.coupling.centers.copy(),
                 "counters": {"remeshes": k.remeshes, "retries": self.retries,
                              "rejections": self.rejections, "euler_steps": self.euler_steps,
                              **self.factor_counts,
                              "chord_extra_iterations": self.coupling.chord_extra_iterations,
+                             **{"repairs." + r: v for r, v in k.repairs.items()},
                              **{"remesh_reasons." + r: v
                                 for r, v in k.remesh_reasons.items()}}}
         # a moved mesh's factorisation depends on where the mesh was when it was made:
@@ -319,6 +328,20 @@ class CoupledStepper:
         record = self.coupling.factor_record() if self.ale else {}
         data.update({f: record.get(f) for f in ("factor_a0", "factor_nodes",
                                                 "factor_centers", "factor_x", "factor_w")})
+        return data
+
+    @staticmethod
+    def with_later_entries(data: dict) -> dict:
+        """``data`` (:meth:`checkpoint_state` of an earlier version) with the entries added
+        since, at what that version did: a mesh graded where it was built (no repair)."""
+        data = dict(data)
+        if "travel_poses" not in data and "mesh_centers" in data:
+            data["travel_poses"] = np.vstack([data["mesh_centers"],
+                                              np.asarray(data["mesh_angles"])[None, :]])
+        counters = data.get("counters")
+        if isinstance(counters, dict) and "repairs.done" not in counters:
+            data["counters"] = {**counters, "repairs.done": 0, "repairs.refused": 0,
+                                "repairs.flipped": 0}
         return data
 
     def forget_caches(self) -> None:
@@ -340,6 +363,8 @@ class CoupledStepper:
         st.state = data["state"]
         k = st.keeper
         k.flow_sizing = data.get("flow_sizing")
+        if data.get("travel_poses") is not None:  # a repaired mesh: where it was graded
+            k.travel_poses = np.array(data["travel_poses"], dtype=float)
         k.wake_grading = data.get("wake_grading", k.wake_grading)
         if st.ale:  # the writer's factorisation
             st.coupling.refactor(data, k.reference_space)
@@ -353,6 +378,8 @@ class CoupledStepper:
         st.rejections, st.euler_steps = c["rejections"], c["euler_steps"]
         k.remesh_reasons.update({r.split(".", 1)[1]: v for r, v in c.items()
                                  if r.startswith("remesh_reasons.")})
+        k.repairs.update({r.split(".", 1)[1]: v for r, v in c.items()
+                          if r.startswith("repairs.")})
         # the counts so far, less what the rebuilt coupling has already done
         done = st.factor_counts
         k.retired_factor_counts = {f: c[f] - done[f] + k.retired_factor_counts[f]

@@ -102,7 +102,8 @@ class Registry:
     dataclasses : iterable of type
         Dataclasses stored as their ``init`` fields and rebuilt as
         ``cls(**fields)``; a field added to one of them later is stored too,
-        with no change here.
+        with no change here, and read at its default from a file written before it when
+        the class names it in ``LATER_FIELDS`` (a class attribute).
     custom : iterable of Custom
         Other types, with their own codecs.
     """
@@ -349,11 +350,12 @@ class _Reader:
         extra = [k for k in fields if k not in names]
         if extra:
             self.fail(_join(path, extra[0]), f"unknown field of {name}")
-        missing = [k for k in names if k not in fields]
+        later = getattr(cls, "LATER_FIELDS", ())  # added since: their defaults if absent
+        missing = [k for k in names if k not in fields and k not in later]
         if missing:
             self.fail(_join(path, missing[0]), f"missing field of {name}")
         kw = {}
-        for k in names:
+        for k in (k for k in names if k in fields):
             nf = cls is not None and _nonfinite_default(cls, k)
             kw[k] = self.node(fields[k], _join(path, k), nf)
         try:

@@ -99,6 +99,10 @@ SCENE_DOCS: Docs = {
     "remesh_travel": KeyDoc("float", "moving mesh: remesh when a particle has travelled this "
                             "many radii from where its mesh was built", "> 0 and <= 100",
                             section="coupling"),
+    "mesh_repair": KeyDoc("string", "moving mesh: \"flips\": flip edges of the mesh in use "
+                          "when a few triangles ask for a remesh (a new mesh only when flips "
+                          "cannot); \"none\": a new mesh; \"auto\": flips with the split "
+                          "coupling", '"auto", "flips" or "none"', section="coupling"),
     "newton_tol": KeyDoc("float", "monolithic coupling: the corrector of a step stops when its "
                          "update is below this fraction of the velocity scale",
                          "> 0 and <= 0.001", section="coupling"),

@@ -6,6 +6,7 @@ import os
 import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -58,6 +59,11 @@ class Scene:
     remesh_travel : float
         ALE: how far (in bounding radii) a particle may travel from the place
         its mesh was graded for before a remesh.
+    mesh_repair : {"auto", "flips", "none"}
+        ALE: what answers a remesh asked for by a few poor triangles. ``"flips"``: flip
+        edges of the mesh in use where that keeps every triangle good (the vertices stay;
+        a new mesh only when flips cannot); ``"none"``: a new mesh; ``"auto"`` (default):
+        ``"flips"`` with the split coupling, ``"none"`` with the monolithic one.
     newton_tol : float
         The monolithic coupling's corrector stops when its update (or the error left,
         estimated from the contraction rate) is below this fraction of the velocity
@@ -82,6 +88,10 @@ class Scene:
         needs to carry the column's weight, and sets it from its packing.
     """
 
+    #: fields added after checkpoints were first written: read at their defaults from one
+    #: that lacks them
+    LATER_FIELDS: ClassVar[tuple[str, ...]] = ("mesh_repair",)
+
     domain: tuple
     particles: tuple
     fluid: Fluid | None = field(default_factory=Fluid)
@@ -95,6 +105,7 @@ class Scene:
     remesh_fraction: float = 0.25
     mesh_motion: str = "auto"
     remesh_travel: float = 1.0
+    mesh_repair: str = "auto"
     newton_tol: float = 1e-6
     output_dir: str | None = None
     vtu_every: int = 10
@@ -116,6 +127,14 @@ class Scene:
         if self.mesh_motion == "auto":
             return self.coupling in ("monolithic", "split")
         return self.mesh_motion == "ale"
+
+    @property
+    def repairs_mesh(self) -> bool:
+        """Whether a moving mesh is repaired by edge flips before it is rebuilt
+        (``mesh_repair`` resolved)."""
+        if self.mesh_repair == "auto":
+            return self.coupling == "split"
+        return self.mesh_repair == "flips"
 
     def __post_init__(self):
         for name, value, cls, what in (
@@ -154,18 +173,7 @@ class Scene:
                 raise ValueError(f"particles[{i}]: polygon sticks out of domain.box {list(d)}")
             if p.motion is not None:
                 self._check_motion(i, p)
-        if self.coupling not in ("monolithic", "partitioned", "split"):
-            raise ValueError(f"coupling.scheme = {self.coupling!r}: must be 'monolithic', "
-                             "'split' or 'partitioned'")
-        num("coupling", "remesh_fraction", self.remesh_fraction, lo=0, hi=1.0)
-        if self.mesh_motion not in ("auto", "fixed", "ale"):
-            raise ValueError(f"coupling.mesh_motion = {self.mesh_motion!r}: must be 'auto', "
-                             "'ale' or 'fixed'")
-        if self.mesh_motion == "ale" and self.coupling == "partitioned":
-            raise ValueError("coupling.mesh_motion = 'ale': needs coupling.scheme = "
-                             "'monolithic' or 'split' (the partitioned scheme runs on a "
-                             "fixed mesh)")
-        num("coupling", "remesh_travel", self.remesh_travel, lo=0, hi=100.0)
+        self._check_coupling()
         object.__setattr__(self, "newton_tol",
                            num("coupling", "newton_tol", self.newton_tol, lo=0, hi=1e-3))
         for key in ("vtu_every", "checkpoint_every"):
@@ -180,6 +188,24 @@ class Scene:
         self._check_dem_dt()
         if self.fluid is None and self.effects.fluid:
             object.__setattr__(self, "effects", replace(self.effects, fluid=False))
+
+    def _check_coupling(self) -> None:
+        """The ``[coupling]`` keys but ``newton_tol`` (one-line errors)."""
+        if self.coupling not in ("monolithic", "partitioned", "split"):
+            raise ValueError(f"coupling.scheme = {self.coupling!r}: must be 'monolithic', "
+                             "'split' or 'partitioned'")
+        num("coupling", "remesh_fraction", self.remesh_fraction, lo=0, hi=1.0)
+        if self.mesh_motion not in ("auto", "fixed", "ale"):
+            raise ValueError(f"coupling.mesh_motion = {self.mesh_motion!r}: must be 'auto', "
+                             "'ale' or 'fixed'")
+        if self.mesh_motion == "ale" and self.coupling == "partitioned":
+            raise ValueError("coupling.mesh_motion = 'ale': needs coupling.scheme = "
+                             "'monolithic' or 'split' (the partitioned scheme runs on a "
+                             "fixed mesh)")
+        num("coupling", "remesh_travel", self.remesh_travel, lo=0, hi=100.0)
+        if self.mesh_repair not in ("auto", "flips", "none"):
+            raise ValueError(f"coupling.mesh_repair = {self.mesh_repair!r}: must be 'auto', "
+                             "'flips' or 'none'")
 
     def _check_motion(self, i: int, p: ParticleSpec) -> None:
         """A prescribed motion fits its particle and the run (one-line errors)."""

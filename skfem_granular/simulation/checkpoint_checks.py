@@ -89,7 +89,7 @@ def check_stepper(st, where, K):
     for name, v in (st.get("counters") or {}).items():
         check_count(where, f"stepper.counters.{name}", v)
     for name, shape in (("mesh_centers", (2, K)), ("mesh_angles", (K,)),
-                        ("coupling_centers", (2, K))):
+                        ("coupling_centers", (2, K)), ("travel_poses", (3, K))):
         if name in st:
             check_array(where, f"stepper.{name}", st[name], shape)
     mesh = st.get("mesh")

@@ -38,6 +38,7 @@ def summarize(sim, hist: History) -> dict:
         "dt": sc.time.dt,
         "remeshes": sim.remeshes,
         "remesh_reasons": None if sc.dry else dict(sim.stepper.remesh_reasons),
+        "mesh_repairs": None if sc.dry else dict(sim.stepper.mesh_repairs),
         **({} if sc.dry else sim.stepper.factor_counts),
         "retries": sim.retries,
         "rejections": sim.rejections,

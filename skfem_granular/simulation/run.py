@@ -183,7 +183,7 @@ class Simulation:
     @classmethod
     def resume(cls, directory, t_end: float | None = None, *,
                budget: Budget | None = None, terms=None,
-               coupling: str | None = None) -> Simulation:
+               coupling: str | None = None, mesh_repair: str | None = None) -> Simulation:
         """Continue a run from the checkpoint in ``directory``.
 
         Parameters
@@ -200,6 +200,8 @@ class Simulation:
             Continue with this coupled solver instead of the run's (``Scene.coupling``),
             for instance a many-grain run on the split solver; the state carries over, the
             new solver factorises anew.
+        mesh_repair : {"auto", "flips", "none"}, optional
+            Continue with this ``Scene.mesh_repair`` instead of the run's.
 
         Returns
         -------
@@ -234,6 +236,8 @@ class Simulation:
                                  "with overwrite to end earlier)")
             scene = replace(scene, time=replace(scene.time, t_end=t_end))
         saved = data["stepper"]
+        if isinstance(saved, dict) and "mesh_centers" in saved:  # a coupled run's
+            saved = CoupledStepper.with_later_entries(saved)
         if coupling is not None and coupling != scene.coupling:
             if coupling not in ("monolithic", "split") or scene.coupling == "partitioned":
                 raise ValueError(f"coupling = {coupling!r}: a run on the "
@@ -241,6 +245,8 @@ class Simulation:
                                  "'split' (the partitioned scheme's mesh does not move)")
             scene = replace(scene, coupling=coupling)
             saved = {**saved, "factor_a0": None}  # the other solver's factorisation
+        if mesh_repair is not None:
+            scene = replace(scene, mesh_repair=mesh_repair)  # validated by the Scene
         sim = cls(replace(scene, output_dir=None), mesh=saved.get("mesh"),  # no folder check
                   budget=budget, terms=terms)
         sim.scene, sim.output_dir, sim.folder = scene, Path(directory), folder
