@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+from scipy.sparse import csgraph
 
 from ..fluid.points import evaluation_matrix
 
@@ -138,10 +139,18 @@ def divergence_free_nearby(space, free: np.ndarray, u: np.ndarray,
     R = np.flatnonzero(rows & pfree)
     B, M = space.blocks(("B", "M"))
     BR = sp.csr_matrix(B)[R]
-    BRJ = BR[:, J].toarray()
+    BRJ = sp.csr_matrix(BR[:, J])
     D = M.diagonal()[J]
-    # least squares: the patch's total flux is what the rim leaves it (S has the constant)
-    q = sla.lstsq((BRJ / D) @ BRJ.T, BR @ u, lapack_driver="gelsy")[0]
+    S = sp.csr_matrix(BRJ @ sp.diags(1.0 / D) @ BRJ.T)
+    r = BR @ u
+    q = np.zeros(R.size)
+    # one dense least-squares solve per connected piece of the patch (each holds the
+    # constant pressure: its total flux is what its rim leaves it)
+    n_pieces, piece = csgraph.connected_components(S, directed=False)
+    for k in range(n_pieces):
+        rows_k = np.flatnonzero(piece == k)
+        S_k = S[rows_k][:, rows_k].toarray()
+        q[rows_k] = sla.lstsq(S_k, r[rows_k], lapack_driver="gelsy")[0]
     v = np.array(u, dtype=float)
     v[J] -= (BRJ.T @ q) / D
     return v
