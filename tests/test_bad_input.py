@@ -780,7 +780,7 @@ CHECKPOINTS = [
      ["evil: not a plain array", "allow_pickle=False"]),
     ("checkpoint-float32-array",
      lambda t: _crafted(t, _array("dem.v", lambda x: x.astype(np.float32)), raw={}),
-     ["dem.v: array of dtype float32: must be one of float64, int64, bool"]),
+     ["dem.v: array of dtype float32: must be one of float64, int64, int32, bool"]),
     ("checkpoint-bad-scene-value",
      lambda t: _crafted(t, _set("scene.particles.0.density", -1.0)),
      ["scene: particles[0].density = -1.0", "> 0"]),

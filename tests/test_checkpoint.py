@@ -168,7 +168,7 @@ def test_checkpoint_is_plain_data(tmp_path):
         names = set(npz.files)
         u = npz["stepper.state.u_n"]
         assert {npz[n].dtype.name for n in names if n != "header.json"} <= {
-            "float64", "int64", "bool"}
+            "float64", "int64", "int32", "bool"}
     assert np.array_equal(u, sim.last_good.u_n)
     with zipfile.ZipFile(path) as zf:
         header = json.loads(zf.read("header.json"))

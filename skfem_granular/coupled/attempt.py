@@ -170,7 +170,7 @@ def _next_state(parts: StepParts, s: CoupledState, bdf2: ts.BDF2, sol: StepSolut
     if parts.adaptive:
         du = bdf2.derivative(u_new, s.u_n, None if bdf2.euler else s.u_prev)
     return CoupledState(
-        u_n=u_new, p_n=sol.x[nu:].copy(), x=sol.x, t=s.t + bdf2.dt, u_prev=s.u_n,
+        u_n=u_new, p_n=sol.x[nu:].copy(), t=s.t + bdf2.dt, u_prev=s.u_n,
         xi_prev=xi_n, q_prev=q_n, dt_prev=bdf2.dt, F_held=sol.force, T_held=sol.torque,
         du_n=du, du_prev=s.du_n, dxi_n=acc, dxi_prev=s.dxi_n, since_remesh=s.since_remesh + 1,
         contact_age=0 if touching else s.contact_age + 1, euler=bdf2.euler,

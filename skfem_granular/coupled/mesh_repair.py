@@ -182,6 +182,4 @@ def transfer_by_flips(state, old_space, new_space, changed, free=None) -> dict:
             u_prev = divergence_free_nearby(prev, free, u_prev, changed)
     fields = {"u_n": u_n, "du_n": moved(E_n, s.du_n), "u_prev": u_prev,
               "du_prev": moved(E_prev, s.du_prev)}
-    p = np.zeros(new_space.N - new_space.nu) if s.p_n is None else s.p_n
-    fields["x"] = np.concatenate([u_n, p])
     return fields

@@ -20,8 +20,6 @@ class CoupledState:
     ----------
     u_n, p_n : ndarray
         Fluid velocity and pressure DOFs at ``t`` (``p_n`` None before the first step).
-    x : ndarray
-        The full fluid vector ``[u_n, p_n]`` on the current mesh (for output).
     u_prev, xi_prev, q_prev : ndarray or None
         Fluid velocity, rigid velocities ``(3, K)`` and poses ``(3, K)`` at ``t_{n-1}``.
     p_prev : ndarray or None
@@ -51,10 +49,11 @@ class CoupledState:
     #: fields added after checkpoints were first written: read at their defaults from one
     #: that lacks them
     LATER_FIELDS: ClassVar[tuple[str, ...]] = ("p_prev",)
+    #: fields checkpoints once held and no longer do: ignored in one that has them
+    DROPPED_FIELDS: ClassVar[tuple[str, ...]] = ("x",)
 
     u_n: np.ndarray
     p_n: np.ndarray | None
-    x: np.ndarray
     t: float = 0.0
     u_prev: np.ndarray | None = None
     xi_prev: np.ndarray | None = None
@@ -75,6 +74,11 @@ class CoupledState:
     nodes_prev: np.ndarray | None = None
     p_prev: np.ndarray | None = None
 
+    @property
+    def x(self) -> np.ndarray | None:
+        """The full fluid vector ``[u_n, p_n]`` on the current mesh, a new array (None
+        before the first step: no pressure yet)."""
+        return None if self.p_n is None else np.concatenate([self.u_n, self.p_n])
 
 @dataclass(frozen=True)
 class StepReport:

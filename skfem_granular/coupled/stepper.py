@@ -110,7 +110,7 @@ class CoupledStepper:
                                  coupling_options={"terms": terms, "assembly": assembly})
         self.retries = self.rejections = self.euler_steps = 0
         self.state = CoupledState(u_n=np.zeros(self.space.nu), p_n=None,
-                                  x=np.zeros(self.space.N), F_held=np.zeros((2, dem.n)),
+                                  F_held=np.zeros((2, dem.n)),
                                   T_held=np.zeros(dem.n),
                                   nodes_n=self.mesh.p if self.ale else None)
 
@@ -292,7 +292,9 @@ class CoupledStepper:
 
     def flow(self):
         """The fluid now, as a :class:`~skfem_granular.fluid.Flow` on the current mesh."""
-        return self.coupling.flow(self.state.x)
+        s = self.state
+        p = np.zeros(self.space.N - self.space.nu) if s.p_n is None else s.p_n
+        return self.coupling.flow(np.concatenate([s.u_n, p]))
 
     def collect_timings(self) -> dict:
         """Add the coupling's phase times to :attr:`timings` (and zero them); returns it.

@@ -71,10 +71,10 @@ class FieldTransfer:
 
 def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project=None) -> dict:
     """The fluid histories of a :class:`~skfem_granular.coupled.state.CoupledState` moved
-    from ``old`` onto ``new``: ``u_n``, ``du_n``, ``p_n`` and ``x`` at ``t_n``, ``u_prev``
+    from ``old`` onto ``new``: ``u_n``, ``du_n``, ``p_n`` at ``t_n``, ``u_prev``
     and ``du_prev`` at ``t_{n-1}``, as a dict of those fields (for
     ``dataclasses.replace``). Before the first step (``p_n`` None, a first mesh rebuilt
-    at once) the pressure stays None and ``x`` holds zero pressures.
+    at once) the pressure stays None.
 
     Parameters
     ----------
@@ -104,7 +104,5 @@ def transfer_histories(state, old, new, *, old_prev=None, new_prev=None, project
         if u_prev is not None:  # on the t_{n-1} configuration: its M and B only
             u_prev = divergence_free_projection(project, u_prev,
                                                 space=None if old_prev is None else new_prev)
-    x = np.concatenate([u_n, np.zeros(new.N - new.nu) if p_n is None else p_n])
     return {"u_n": u_n, "du_n": du_n, "p_n": p_n, "p_prev": None, "u_prev": u_prev,
-            "du_prev": du_prev,
-            "x": x}
+            "du_prev": du_prev}

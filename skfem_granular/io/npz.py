@@ -19,9 +19,10 @@ import numpy as np
 from .files import atomic_write
 
 #: dtypes an array may have in the file
-STORED_DTYPES = ("float64", "int64", "bool")
-#: dtypes an array may have in memory (int32 is stored as int64 and restored)
-MEMORY_DTYPES = {"float64": "float64", "int64": "int64", "bool": "bool", "int32": "int64"}
+STORED_DTYPES = ("float64", "int64", "int32", "bool")
+#: dtypes an array may have in memory, and how each is stored (files written before int32
+#: was stored as such hold int32 arrays as int64: still read)
+MEMORY_DTYPES = {"float64": "float64", "int64": "int64", "bool": "bool", "int32": "int32"}
 HEADER_MEMBER = "header.json"
 #: Largest header read (bytes; a checkpoint's is about 7 kB).
 MAX_HEADER_BYTES = 16_000_000

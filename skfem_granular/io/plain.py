@@ -12,7 +12,7 @@ qualified names, and a few other types through a :class:`Custom` codec).
 - an unknown format name or version, a JSON object with unknown or missing
   keys, a type that is not in the registry, a dataclass with an unknown or a
   missing field;
-- an array whose dtype is not float64, int64 or bool, whose shape differs
+- an array whose dtype is not float64, int64, int32 or bool, whose shape differs
   from the header's, that the header does not mention, or that is not finite
   where finite values are required (everywhere unless the caller allows
   otherwise for a field, or the dataclass field's default is itself NaN/inf).
@@ -103,7 +103,8 @@ class Registry:
         Dataclasses stored as their ``init`` fields and rebuilt as
         ``cls(**fields)``; a field added to one of them later is stored too,
         with no change here, and read at its default from a file written before it when
-        the class names it in ``LATER_FIELDS`` (a class attribute).
+        the class names it in ``LATER_FIELDS`` (a class attribute); a field it held once
+        and names in ``DROPPED_FIELDS`` is ignored in a file that has it.
     custom : iterable of Custom
         Other types, with their own codecs.
     """
@@ -323,9 +324,10 @@ class _Reader:
             self.fail(path, f"shape {shape!r}: must be a list of integers >= 0")
         a = self.arrays[key]
         self.used.add(key)
-        if a.dtype.name != MEMORY_DTYPES[dtype]:
+        stored = ("int32", "int64") if dtype == "int32" else (MEMORY_DTYPES[dtype],)
+        if a.dtype.name not in stored:
             self.fail(path, f"array of dtype {a.dtype.name} in the file: must be "
-                            f"{MEMORY_DTYPES[dtype]} (header: {dtype})")
+                            f"{' or '.join(stored)} (header: {dtype})")
         if list(a.shape) != shape:
             self.fail(path, f"array of shape {tuple(a.shape)} in the file, {tuple(shape)} in "
                             "the header")
@@ -347,13 +349,16 @@ class _Reader:
         build, names, cls = dec
         if not isinstance(fields, dict):
             self.fail(path, "fields: must be an object")
-        extra = [k for k in fields if k not in names]
+        dropped = getattr(cls, "DROPPED_FIELDS", ())  # held once: ignored
+        extra = [k for k in fields if k not in names and k not in dropped]
         if extra:
             self.fail(_join(path, extra[0]), f"unknown field of {name}")
         later = getattr(cls, "LATER_FIELDS", ())  # added since: their defaults if absent
         missing = [k for k in names if k not in fields and k not in later]
         if missing:
             self.fail(_join(path, missing[0]), f"missing field of {name}")
+        for k in (k for k in dropped if k in fields):  # read (checked, counted), not kept
+            self.node(fields[k], _join(path, k), True)
         kw = {}
         for k in (k for k in names if k in fields):
             nf = cls is not None and _nonfinite_default(cls, k)

@@ -110,7 +110,8 @@ def _polygon(d):
 
 
 def _mesh_fields(m):
-    return {"doflocs": m.doflocs, "t": m.t,
+    # stored as int32 (half the bytes; read back as int32 anyway)
+    return {"doflocs": m.doflocs, "t": m.t.astype(np.int32, copy=False),
             "boundaries": None if m.boundaries is None else dict(m.boundaries),
             "subdomains": None if m.subdomains is None else dict(m.subdomains)}
 

@@ -115,14 +115,14 @@ def check_stepper(st, where, K):
     if state is not None and m is not None:
         nv, ne = m.p.shape[1], m.facets.shape[1]
         nu = 2 * (nv + ne)
-        fluid = {"u_n": (nu,), "p_n": (nv,), "p_prev": (nv,), "x": (nu + nv,),
+        fluid = {"u_n": (nu,), "p_n": (nv,), "p_prev": (nv,),
                  "u_prev": (nu,), "du_n": (nu,), "du_prev": (nu,)}
         rigid = {"xi_prev": (3, K), "q_prev": (3, K), "dxi_n": (3, K), "dxi_prev": (3, K),
                  "F_held": (2, K), "T_held": (K,)}
         moving = {"nodes_n": (2, nv), "nodes_prev": (2, nv)}  # ALE: the vertices at t, t_{n-1}
         for name, shape in {**fluid, **rigid, **moving}.items():
             if hasattr(state, name):
-                none = name not in ("u_n", "x")
+                none = name != "u_n"
                 check_array(where, f"stepper.state.{name}", getattr(state, name), shape,
                              none=none)
         for name in ("t",):
