@@ -15,24 +15,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
-import sys
-import tempfile
 import time
 import zipfile
 from contextlib import closing
 from pathlib import Path
+
+from run_copy import check_run, run_argument, scratch_copy
 
 
 def measure(run: Path, writes: int) -> dict:
     """Resume a copy of ``run``, take one step, write its checkpoint ``writes`` times."""
     from skfem_granular.simulation import Simulation, checkpoint
 
-    with tempfile.TemporaryDirectory(prefix="checkpoint_size_") as tmp:
-        folder = Path(tmp) / run.name
-        folder.mkdir()
-        for name in ("checkpoint.npz", "history.csv"):
-            shutil.copy2(run / name, folder / name)
+    with scratch_copy(run, "checkpoint_size_") as folder:
         sim = Simulation.resume(folder, t_end=1.0)
         with closing(sim.evolve(progress=False)) as steps:
             next(steps)
@@ -53,14 +48,11 @@ def measure(run: Path, writes: int) -> dict:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("run", type=Path, help="a run's output folder with checkpoint.npz")
+    run_argument(ap)
     ap.add_argument("--writes", type=int, default=3)
     ap.add_argument("--out", type=Path, default=None, help="JSON file (default: print only)")
     args = ap.parse_args(argv)
-    if not (args.run / "checkpoint.npz").exists():
-        sys.exit(f"run: {args.run} has no checkpoint.npz")
-    if args.writes < 1:
-        sys.exit(f"--writes = {args.writes}: must be at least 1")
+    check_run(args.run, writes=args.writes)
     rec = measure(args.run, args.writes)
     print(json.dumps({k: v for k, v in rec.items() if k != "largest_members"}))
     if args.out is not None:

@@ -26,13 +26,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
-import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
+from run_copy import check_run, run_argument, scratch_copy
 
 from meshing.quality import angles, signed_areas
 
@@ -119,14 +117,11 @@ def survey(motion, q, q_prev, dt_ratio, bounds) -> dict:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("run", type=Path, help="a run's output folder with checkpoint.npz")
+    run_argument(ap)
     ap.add_argument("--steps", type=int, default=6)
     ap.add_argument("--out", type=Path, default=None, help="JSON file written")
     args = ap.parse_args(argv)
-    if not (args.run / "checkpoint.npz").exists():
-        sys.exit(f"run: {args.run} has no checkpoint.npz")
-    if args.steps < 1:
-        sys.exit(f"--steps = {args.steps}: must be at least 1")
+    check_run(args.run, steps=args.steps)
     import skfem_granular.coupled.mesh_keeper as keeper
     from skfem_granular.coupled import ale_rules
     from skfem_granular.simulation import Simulation
@@ -146,13 +141,9 @@ def main(argv=None) -> None:
 
     keeper.remesh_reason = recorded  # the mesh keeper asks its module for the rule
     step = [0]
-    with tempfile.TemporaryDirectory(prefix="remesh_triggers_") as tmp:
-        folder = Path(tmp) / args.run.name
-        folder.mkdir()
-        shutil.copy2(args.run / "checkpoint.npz", folder / "checkpoint.npz")
-        if (args.run / "history.csv").exists():  # a checkpoint of version 4 follows its rows
-            shutil.copy2(args.run / "history.csv", folder / "history.csv")
-        sim = Simulation.resume(folder)
+    with scratch_copy(args.run, "remesh_triggers_") as folder:
+        # every remesh the rule asks for, as a remesh (a repair would ask the rule again)
+        sim = Simulation.resume(folder, mesh_repair="none")
         for _ in sim.evolve():
             step[0] += 1
             if step[0] >= args.steps:

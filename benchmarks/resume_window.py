@@ -23,12 +23,11 @@ from __future__ import annotations
 import argparse
 import json
 import resource
-import shutil
 import subprocess
-import sys
-import tempfile
 import time
 from pathlib import Path
+
+from run_copy import check_run, run_argument, scratch_copy
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -48,12 +47,7 @@ def window(run: Path, steps: int, coupling: str | None = None,
     import skfem_granular
     from skfem_granular.simulation import Simulation
 
-    with tempfile.TemporaryDirectory(prefix="resume_window_") as tmp:
-        folder = Path(tmp) / run.name
-        folder.mkdir()
-        shutil.copy2(run / "checkpoint.npz", folder / "checkpoint.npz")
-        if (run / "history.csv").exists():  # a checkpoint of version 4 follows its rows
-            shutil.copy2(run / "history.csv", folder / "history.csv")
+    with scratch_copy(run, "resume_window_") as folder:
         w0, c0 = time.perf_counter(), time.process_time()
         sim = Simulation.resume(folder, t_end=t_end, coupling=coupling,
                                 mesh_repair=mesh_repair)
@@ -102,7 +96,7 @@ def window(run: Path, steps: int, coupling: str | None = None,
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("run", type=Path, help="a run's output folder with checkpoint.npz")
+    run_argument(ap)
     ap.add_argument("--steps", type=int, default=12)
     ap.add_argument("--coupling", choices=["monolithic", "split"], default=None,
                     help="continue on this coupled solver (default: the run's)")
@@ -113,10 +107,7 @@ def main(argv=None) -> None:
     ap.add_argument("--out", type=Path, default=None,
                     help="JSON file the record is appended to (default: print only)")
     args = ap.parse_args(argv)
-    if not (args.run / "checkpoint.npz").exists():
-        sys.exit(f"run: {args.run} has no checkpoint.npz")
-    if args.steps < 1:
-        sys.exit(f"--steps = {args.steps}: must be at least 1")
+    check_run(args.run, steps=args.steps)
     rec = window(args.run, args.steps, args.coupling, args.t_end, args.mesh_repair)
     print(json.dumps({k: v for k, v in rec.items() if k not in ("per_step", "dofs")}))
     if args.out is not None:
