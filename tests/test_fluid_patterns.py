@@ -164,3 +164,18 @@ def test_saddle_matrix_is_that_of_scipys_block_stacking():
         for got, expected in ((L.indptr, ref.indptr), (L.indices, ref.indices),
                               (L.data, ref.data)):
             np.testing.assert_array_equal(got, expected)
+
+
+def test_facet_dofs_are_scikit_fems():
+    """The boundary DOFs read off the numbering (one call per grain on a many-grain mesh)
+    are scikit-fem's ``get_facet_dofs(...).all()``, sorted, for every field of the space."""
+    from skfem_granular.fluid.numbering import facet_dofs
+
+    m = MeshTri.init_circle(4).with_boundaries({"left": lambda x: x[0] < 0,
+                                                      "top": lambda x: x[1] > 0.3})
+    space = TaylorHood(m)
+    for name, facets in m.boundaries.items():
+        for dofs in (space.velocity_dofs, space.pressure_dofs, space.scalar_dofs):
+            want = np.sort(dofs.get_facet_dofs(facets).all())
+            got = facet_dofs(dofs, m, facets)
+            assert got.dtype == want.dtype and np.array_equal(got, want), name

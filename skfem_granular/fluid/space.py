@@ -19,7 +19,7 @@ from skfem.quadrature import get_quadrature
 
 from . import forms
 from .convection import Convection, ConvectionKernel, element_pattern
-from .numbering import Numbering, reference_doflocs
+from .numbering import Numbering, facet_dofs, reference_doflocs
 from .ordering import element_incidence, fill_reducing_ordering
 
 #: How the built-in blocks can be assembled (:class:`TaylorHood`'s ``assembly``).
@@ -344,12 +344,12 @@ class TaylorHood:
         """Velocity DOFs (both components) on boundary ``name``, sorted."""
         self.check_boundary(name, "boundary")
         ref = self.reference
-        return _facet_dofs(ref.velocity_dofs, ref.mesh, ref.mesh.boundaries[name])
+        return facet_dofs(ref.velocity_dofs, ref.mesh, ref.mesh.boundaries[name])
 
     def pressure_boundary_dofs(self, name: str) -> np.ndarray:
         """Pressure DOFs on boundary ``name``."""
         ref = self.reference
-        return _facet_dofs(ref.pressure_dofs, ref.mesh, ref.mesh.boundaries[name])
+        return facet_dofs(ref.pressure_dofs, ref.mesh, ref.mesh.boundaries[name])
 
     @cached_property
     def all_boundary_dofs(self) -> np.ndarray:
@@ -447,13 +447,3 @@ class TaylorHood:
 
         rhs = asm(curl_form, self.sb, u=self.ub.interpolate(u))
         return self._scalar_mass_lu.solve(rhs)
-
-
-def _facet_dofs(dofs, mesh, facets: np.ndarray) -> np.ndarray:
-    """The DOFs of ``dofs`` (a P1 or P2 field, scalar or vector) on ``facets``, sorted:
-    what ``dofs.get_facet_dofs(facets).all()`` holds, without its per-call overhead (a
-    mesh of 1000 grains asks for 1000 boundaries)."""
-    vertices = np.unique(mesh.facets[:, facets])
-    on_edges = (dofs.facet_dofs[:, facets].ravel() if dofs.facet_dofs.size
-                else np.zeros(0, dtype=dofs.nodal_dofs.dtype))
-    return np.sort(np.concatenate([dofs.nodal_dofs[:, vertices].ravel(), on_edges]))
