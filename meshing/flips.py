@@ -24,11 +24,12 @@ from numpy.typing import NDArray
 from .quality import signed_areas
 
 
-def _score(P: NDArray[np.float64], tri: NDArray[np.int64],
-           sign: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Smallest angle (degrees) of each triangle of ``tri`` ``(3, n)`` over the
-    configurations ``P`` ``(m, 2, nv)``; ``-1`` where one is flat or turned over
-    (its signed area times ``sign`` not positive)."""
+def _score(P: NDArray[np.float64], tri: NDArray[np.int64], sign: NDArray[np.float64],
+           near: int, cap: float) -> NDArray[np.float64]:
+    """``(2, n)``: for each triangle of ``tri`` ``(3, n)``, its smallest angle (degrees)
+    over the first ``near`` configurations of ``P`` ``(m, 2, nv)``, at most ``cap``, and
+    over all of them; ``-1`` where one is flat or turned over (signed area times
+    ``sign`` not positive). Compared as pairs, first entry first."""
     q = P[:, :, tri]  # (m, 2, 3, n)
     e = q[:, :, [2, 0, 1]] - q[:, :, [1, 2, 0]]  # the edge opposite each vertex
     area = 0.5 * (e[:, 0, 2] * e[:, 1, 0] - e[:, 1, 2] * e[:, 0, 0])  # (b-a) x (c-b) / 2
@@ -36,7 +37,8 @@ def _score(P: NDArray[np.float64], tri: NDArray[np.int64],
     b2, c2 = L2[:, [1, 2, 0]], L2[:, [2, 0, 1]]
     cos = (b2 + c2 - L2) / np.maximum(2.0 * np.sqrt(b2 * c2), 1e-300)
     smallest = np.degrees(np.arccos(np.clip(cos.max(axis=1), -1.0, 1.0)))  # (m, n)
-    return np.where(area * sign <= 0.0, -1.0, smallest).min(axis=0)
+    smallest = np.where(area * sign <= 0.0, -1.0, smallest)
+    return np.vstack([np.minimum(smallest[:near].min(axis=0), cap), smallest.min(axis=0)])
 
 
 def _neighbours(t: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
@@ -53,7 +55,7 @@ def _neighbours(t: NDArray[np.int64], nv: int) -> NDArray[np.int64]:
 
 
 def flip_repair(t: NDArray[np.int64], configurations: Sequence[NDArray[np.float64]],
-                min_angle: float, *, max_flips: int | None = None
+                min_angle: float, *, near: int | None = None, max_flips: int | None = None
                 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Flip interior edges until no triangle is below ``min_angle`` in any configuration,
     or no flip helps.
@@ -70,6 +72,12 @@ def flip_repair(t: NDArray[np.int64], configurations: Sequence[NDArray[np.float6
         Degrees: a triangle whose smallest angle in some configuration is below this is
         repaired, by the flip of one of its edges that raises the smaller of the two new
         triangles' scores (smallest angle over the configurations) the most, if any does.
+    near : int, optional
+        The first ``near`` configurations come first (default: all of them): a flip must
+        not lower the pair's smallest angle over those below ``min_angle`` (it may raise
+        it), and among such flips the one that raises the smallest angle over all
+        configurations the most is taken. (Judged over all at once, a flip that helps a
+        configuration far ahead could spoil the one the mesh is in.)
     max_flips : int, optional
         At most this many flips (default: ten per triangle below ``min_angle``, and ten).
 
@@ -87,9 +95,11 @@ def flip_repair(t: NDArray[np.int64], configurations: Sequence[NDArray[np.float6
         raise ValueError(f"configurations: must be (2, nv) vertex positions with nv > "
                          f"{int(t.max())}, got shape {P.shape[1:]}")
     sign = np.sign(signed_areas(P[0], t))
-    score = np.concatenate([_score(P, t[:, k:k + 50_000], sign[k:k + 50_000])
-                            for k in range(0, t.shape[1], 50_000)])  # in bounded memory
-    bad = [int(e) for e in np.flatnonzero(score < min_angle)]
+    near = P.shape[0] if near is None else int(near)
+    score = np.hstack([_score(P, t[:, k:k + 50_000], sign[k:k + 50_000], near, min_angle)
+                       for k in range(0, t.shape[1], 50_000)])  # in bounded memory
+    judge = (near, min_angle)
+    bad = [int(e) for e in np.flatnonzero(score[1] < min_angle)]
     if not bad:
         return t, np.zeros(0, dtype=np.int64)
     nbr = _neighbours(t, P.shape[2])
@@ -97,9 +107,9 @@ def flip_repair(t: NDArray[np.int64], configurations: Sequence[NDArray[np.float6
     changed: set[int] = set()
     while bad and budget > 0:
         e = bad.pop()
-        if score[e] >= min_angle:
+        if score[1, e] >= min_angle:
             continue
-        best = _best_flip(P, t, nbr, sign, score, e)
+        best = _best_flip(P, t, nbr, sign, score, e, judge)
         if best is None:
             continue
         _flip(t, nbr, sign, score, e, *best)
@@ -108,13 +118,14 @@ def flip_repair(t: NDArray[np.int64], configurations: Sequence[NDArray[np.float6
         changed.update((e, f))
         # the pair, and their neighbours (whose best flip may have changed: Lawson's)
         bad.extend(int(k) for k in {e, f, *nbr[:, e], *nbr[:, f]}
-                   if k >= 0 and score[k] < min_angle)
+                   if k >= 0 and score[1, k] < min_angle)
     return t, np.array(sorted(changed), dtype=np.int64)
 
 
-def _best_flip(P, t, nbr, sign, score, e):
-    """The flip of an edge of triangle ``e`` that raises its pair's score the most:
-    ``(f, i, new triangles (3, 2), their scores)``, or None."""
+def _best_flip(P, t, nbr, sign, score, e, judge):
+    """The flip of an edge of triangle ``e`` that raises its pair's score (a pair, compared
+    first entry first) the most: ``(f, i, new triangles (3, 2), their scores (2, 2))``, or
+    None."""
     found = []
     for i in range(3):
         f = int(nbr[i, e])
@@ -125,17 +136,17 @@ def _best_flip(P, t, nbr, sign, score, e):
         found.append((f, i, np.array([[a, a], [b, d], [d, c]], dtype=np.int64)))
     if not found:
         return None
-    s = _score(P, np.hstack([new for *_, new in found]), sign[e]).reshape(-1, 2)
-    gain = s.min(axis=1)
-    before = np.array([min(score[e], score[f]) for f, *_ in found])
-    k = int(np.argmax(gain))
-    if gain[k] <= before[k] + 1e-9:
-        better = gain > before + 1e-9
-        if not better.any():
-            return None
-        k = int(np.flatnonzero(better)[np.argmax(gain[better])])
-    f, i, new = found[k]
-    return f, i, new, s[k]
+    s = _score(P, np.hstack([new for *_, new in found]), sign[e], *judge)
+    best, best_gain = None, None
+    for k, (f, i, new) in enumerate(found):
+        pair = s[:, 2 * k:2 * k + 2]
+        gain = (pair[0].min(), pair[1].min())
+        before = (min(score[0, e], score[0, f]), min(score[1, e], score[1, f]))
+        if gain[0] < before[0] or (gain[0] == before[0] and gain[1] <= before[1] + 1e-9):
+            continue  # not better, first entry first
+        if best_gain is None or gain > best_gain:
+            best, best_gain = (f, i, new, pair), gain
+    return best
 
 
 def _flip(t, nbr, sign, score, e, f, i, new, s) -> None:
@@ -157,7 +168,7 @@ def _flip(t, nbr, sign, score, e, f, i, new, s) -> None:
         if g >= 0:
             nbr[:, g][nbr[:, g] == old] = now
     sign[f] = sign[e]
-    score[e], score[f] = s
+    score[:, e], score[:, f] = s[:, 0], s[:, 1]
 
 
 def with_triangles(mesh: skfem.MeshTri, t: NDArray[np.int64],

@@ -5,7 +5,8 @@ falls below the angle or area bound now or one step ahead
 (:func:`~.ale_rules.remesh_reason`); the mesh around it is still good. :func:`flip_plan`
 flips edges (:func:`meshing.flips.flip_repair`) judged over where the vertices were at
 ``t_{n-1}``, where they are and where the particles' extrapolated poses take them
-:data:`REPAIR_AHEAD` steps ahead. The vertices stay, so the pressure and every velocity
+:data:`REPAIR_AHEAD` steps ahead, the first three first (a flip may not spoil what the
+remesh rule judges to help a configuration further ahead). The vertices stay, so the pressure and every velocity
 DOF on a kept vertex or edge keep their values; only the midpoint DOFs of the new edges
 are interpolated (:func:`flip_transfer`), each history in its own configuration.
 """
@@ -43,7 +44,9 @@ def flip_plan(t, nodes_prev, nodes_n, ahead):
     from meshing.flips import flip_repair  # meshing: imported when a mesh is repaired
 
     configs = [nodes_n, *([] if nodes_prev is None else [nodes_prev]), *ahead]
-    t_new, changed = flip_repair(t, configs, REPAIR_ANGLE)
+    # what the remesh rule judges (now and one step ahead) comes first
+    near = len(configs) - max(len(ahead) - 1, 0)
+    t_new, changed = flip_repair(t, configs, REPAIR_ANGLE, near=near)
     return t_new.astype(t.dtype), changed
 
 
