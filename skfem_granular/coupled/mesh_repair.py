@@ -6,9 +6,10 @@ falls below the angle or area bound now or one step ahead
 flips edges (:func:`meshing.flips.flip_repair`) judged over where the vertices were at
 ``t_{n-1}``, where they are and where the particles' extrapolated poses take them
 :data:`REPAIR_AHEAD` steps ahead, the first three first (a flip may not spoil what the
-remesh rule judges to help a configuration further ahead). The vertices stay, so the pressure and every velocity
-DOF on a kept vertex or edge keep their values; only the midpoint DOFs of the new edges
-are interpolated (:func:`flip_transfer`), each history in its own configuration.
+remesh rule judges to help a configuration further ahead). The vertices stay, so the
+pressure and every velocity DOF on a kept vertex or edge keep their values; only the
+midpoint DOFs of the new edges are interpolated (:func:`flip_transfer`), each history in
+its own configuration.
 """
 
 from __future__ import annotations
