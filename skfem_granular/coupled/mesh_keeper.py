@@ -244,9 +244,10 @@ class MeshKeeper:
             return None
         t0 = time.perf_counter()
         q = self.dem.particles.q
+        dt_ratio = None if s.dt_prev is None else self.scene.time.dt / s.dt_prev
         ahead = []
-        if s.q_prev is not None and s.dt_prev is not None:
-            step = (q - s.q_prev) * (self.scene.time.dt / s.dt_prev)
+        if s.q_prev is not None and dt_ratio is not None:  # remesh_reason's extrapolation
+            step = (q - s.q_prev) * dt_ratio
             ahead = [motion.positions(q + k * step) for k in range(1, REPAIR_AHEAD + 1)]
         t_new, changed = flip_plan(motion.t, s.nodes_prev, s.nodes_n, ahead)
         if changed.size == 0 or any(  # a triangle the rule rejects is left: a new mesh
@@ -259,7 +260,6 @@ class MeshKeeper:
 
         built = with_triangles(self.meshed.mesh, t_new, p=s.nodes_n)
         new_motion = self._motion(built, q)
-        dt_ratio = None if s.dt_prev is None else self.scene.time.dt / s.dt_prev
         left = remesh_reason(new_motion, s, self.moved(), q, dt_ratio, self.cores,
                              self.scene.remesh_travel)
         self.timings["meshing"] += time.perf_counter() - t0
