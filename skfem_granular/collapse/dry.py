@@ -48,7 +48,7 @@ class DryCollapse:
     energy_ratio: float
 
 
-def run_dry(packing: Packing, *, mu: float = FRICTION, stop_ratio: float = 1e-4,
+def run_dry(packing: Packing, *, mu: float = FRICTION, mu_r: float = 0.0, stop_ratio: float = 1e-4,
             t_min_tau: float = 3.0, t_max_tau: float = 20.0) -> DryCollapse:
     """Release ``packing`` dry and run until the grains are at rest.
 
@@ -57,6 +57,8 @@ def run_dry(packing: Packing, *, mu: float = FRICTION, stop_ratio: float = 1e-4,
     packing : Packing
     mu : float
         Contact friction (grains and walls; default tan 26 deg).
+    mu_r : float
+        Rolling friction coefficient (0: free rolling).
     stop_ratio : float
         At rest when the kinetic energy is below this fraction of its peak, in (0, 1).
     t_min_tau, t_max_tau : float
@@ -70,7 +72,8 @@ def run_dry(packing: Packing, *, mu: float = FRICTION, stop_ratio: float = 1e-4,
     from ..simulation import Simulation  # the simulation package: imported when used
 
     tau = time_scale(packing)
-    sim = Simulation(column_scene(packing, fluid=False, mu=mu, t_end=t_max_tau * tau))
+    sim = Simulation(column_scene(packing, fluid=False, mu=mu, mu_r=mu_r,
+                                  t_end=t_max_tau * tau))
     peak, E, at_rest, t = 0.0, 0.0, False, 0.0
     for t, _ in sim.evolve():
         E = sim.dem.kinetic_energy()

@@ -38,7 +38,7 @@ def tank_size(packing: Packing) -> tuple[float, float]:
 
 
 def column_scene(packing: Packing, *, fluid: bool = True, core_ratio: float = 0.8,
-                 mu: float = FRICTION, gamma: float = 0.5, tank=None,
+                 mu: float = FRICTION, gamma: float = 0.5, mu_r: float = 0.0, tank=None,
                  t_end: float | None = None, dt: float | None = None,
                  delta_l: float | None = None, name: str = "column",
                  output_dir: str | None = None, vtu_every: int = 50) -> Scene:
@@ -54,6 +54,9 @@ def column_scene(packing: Packing, *, fluid: bool = True, core_ratio: float = 0.
         literature; Kumar et al.'s hydrodynamic radius).
     mu, gamma : float
         Contact friction and damping of the collapse (stiffness: the packing's).
+    mu_r : float
+        Rolling friction coefficient of the contacts (0: the grains roll freely;
+        :class:`~skfem_granular.dem.ContactLaw`).
     tank : (length, height), optional
         Default :func:`tank_size`.
     t_end, dt : float, optional
@@ -68,7 +71,8 @@ def column_scene(packing: Packing, *, fluid: bool = True, core_ratio: float = 0.
     data: dict[str, Any] = {
         "domain": {"box": [0.0, 0.0, L, H], "wall_thickness": packing.d_max},
         "column": {"packing": packing, "core_ratio": core_ratio},
-        "contacts": {"E": packing.E, "mu": mu, "gamma": gamma},
+        "contacts": {"E": packing.E, "mu": mu, "gamma": gamma,
+                     **({"mu_r": mu_r} if mu_r else {})},
         "time": {"t_end": t_end, "dt": min(dt, t_end)},
         "effects": {"fluid": bool(fluid), "gravity": True, "contacts": True,
                     "rotation": True, "remeshing": bool(fluid)},

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import overlap_numba
-from .contact_law import ContactForces, contact_forces
+from .contact_law import ContactForces, contact_forces, contact_length, rolling_torque
 from .overlap import contact_normals, overlap_geometry
 from .particles import rotate_outlines
 
@@ -108,7 +108,28 @@ def apply_contact_law(system, I, J, area, point, normal, length, q, v, dt: float
         m_eff, wall, ft_old, dt)
     cf = ContactForces(I, J, point, normal, fn, ft, ft_spring, energy, area)
     cf.keys = keys
+    if system.law.rolls:
+        _resist_rolling(system, cf, q, Xb, wi - wj, wall, length, dt)
     return cf
+
+
+def _resist_rolling(system, cf: ContactForces, q, Xb, w_rel, wall, length, dt: float) -> None:
+    """Set ``cf.mr``, ``cf.mr_spring`` (:func:`~.contact_law.rolling_torque`) and add
+    the rolling springs' energy to ``cf.energy``."""
+    I, J = cf.i, cf.j
+    Jp = np.where(wall, 0, J)
+    r0 = np.hypot(*(cf.point - q[:2, I]))
+    r1 = np.hypot(*(cf.point - Xb[:, J]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        R_r = np.where(wall, r0, r0 * r1 / (r0 + r1))
+        Ii = system.inertia[I] + system.mass[I] * r0**2
+        Ij = system.inertia[Jp] + system.mass[Jp] * r1**2
+        I_r = np.where(wall, Ii, Ii * Ij / (Ii + Ij))
+    kn = system.law.E * length / contact_length(r0, r1, wall)
+    mr_old = system.contact_history.lookup(cf.keys, system.contact_history.mr)
+    cf.mr, cf.mr_spring, energy = rolling_torque(system.law, cf.fn, kn, R_r, w_rel, I_r,
+                                                 mr_old, dt)
+    cf.energy = cf.energy + energy
 
 
 def accumulate(system, cf: ContactForces, q: np.ndarray, F: np.ndarray, T: np.ndarray):
@@ -126,4 +147,6 @@ def accumulate(system, cf: ContactForces, q: np.ndarray, F: np.ndarray, T: np.nd
     F[0] += np.bincount(idx, weights=fx, minlength=N)
     F[1] += np.bincount(idx, weights=fy, minlength=N)
     T += np.bincount(idx, weights=r[0] * fy - r[1] * fx, minlength=N)
+    if cf.mr is not None:
+        T += np.bincount(idx, weights=np.concatenate([cf.mr, -cf.mr[part]]), minlength=N)
     return F, T

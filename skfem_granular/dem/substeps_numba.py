@@ -13,8 +13,9 @@ arithmetic, substep after substep, in one compiled call:
 3. world outlines, the bounding-circle filter and the overlap of every candidate
    pair (:func:`.overlap_numba.pair_overlap`), the contact normals
    (:func:`.overlap.contact_normals`),
-4. the contact law (:func:`.contact_law.contact_forces`) with the tangential springs'
-   history, the sums onto the particles (:func:`.pipeline.accumulate`),
+4. the contact law (:func:`.contact_law.contact_forces`, with rolling resistance
+   :func:`.contact_law.rolling_torque`) with the springs' history, the sums onto the
+   particles (:func:`.pipeline.accumulate`),
 5. the BDF2 corrector (:func:`.integrator.correct`).
 
 Each expression keeps the order of operations of the numpy version (sums onto a
@@ -62,19 +63,46 @@ def _normal(g, rx, ry, ax, ay):
 
 
 @lazy_njit
-def _stored(hist_keys, hist_ft, key):
-    """The tangential spring force stored for ``key`` (:meth:`.ContactHistory.lookup`)."""
-    if hist_keys.shape[0]:
+def _stored(hist_keys, hist_values, key):
+    """The spring force (or torque) stored for ``key`` (:meth:`.ContactHistory.lookup`)."""
+    if hist_keys.shape[0] and hist_values.shape[0]:
         k = min(np.searchsorted(hist_keys, key), hist_keys.shape[0] - 1)
         if hist_keys[k] == key:
-            return hist_ft[k]
+            return hist_values[k]
     return 0.0
 
 
 @lazy_njit
-def _contact(i, j, N, qp, vp, mass, wall_centroid, g, law, dt, hist_keys, hist_ft,
-             nbodies, c_i, c_j, c_point, c_normal, c_fn, c_ft, c_spring, c_energy,
-             c_area, c_keys, C):
+def _rolling(law, fn, kn, r0, r1, wall, w_rel, Ii, Ij, mr_old, dt):
+    """Rolling torque, spring torque and spring energy
+    (:func:`.contact_law.rolling_torque`, the radius and inertia of
+    :func:`.pipeline.apply_contact_law`); ``Ii``, ``Ij`` the bodies' moments of inertia
+    about the point of action (``Ij`` unused on a wall)."""
+    if wall:
+        R_r = r0
+        I_r = Ii
+    else:
+        R_r = r0 * r1 / (r0 + r1)
+        I_r = Ii * Ij / (Ii + Ij)
+    mu_r = law[6]
+    kr = 2.25 * kn * mu_r**2 * R_r**2
+    limit = mu_r * R_r * fn
+    spring = mr_old - kr * w_rel * dt
+    total = spring - law[7] * 2.0 * math.sqrt(I_r * kr) * w_rel
+    if abs(total) > limit:  # total != 0 here: limit >= 0
+        mr = math.copysign(limit, total)
+        mr_spring = mr
+    else:
+        mr = total
+        mr_spring = spring
+    energy = mr_spring**2 / (2.0 * kr) if kr > 0 else 0.0
+    return mr, mr_spring, energy
+
+
+@lazy_njit
+def _contact(i, j, N, qp, vp, mass, inertia, wall_centroid, g, law, dt, hist_keys, hist_ft,
+             hist_mr, nbodies, c_i, c_j, c_point, c_normal, c_fn, c_ft, c_spring, c_energy,
+             c_area, c_keys, c_mr, c_mr_spring, C):
     """Contact law (:func:`.contact_law.contact_forces`) of the overlapping pair
     ``(i, j)`` whose overlap is ``g[0]``, recorded as contact ``C``."""
     wall = j >= N
@@ -138,6 +166,14 @@ def _contact(i, j, N, qp, vp, mass, wall_centroid, g, law, dt, hist_keys, hist_f
         ft_spring = spring
     energy = E * area**2 / (2.0 * L * length) if length > 0 else 0.0
     energy += ft_spring**2 / (2.0 * kt) if kt > 0 else 0.0
+    if law[6] > 0.0:
+        Ii = inertia[i] + mi * r0**2
+        Ij = 0.0 if wall else inertia[j] + mass[j] * r1**2
+        mr, mr_spring, e_r = _rolling(law, fn, kn, r0, r1, wall, wi - wj, Ii, Ij,
+                                      _stored(hist_keys, hist_mr, key), dt)
+        energy += e_r
+        c_mr[C] = mr
+        c_mr_spring[C] = mr_spring
     c_i[C] = i
     c_j[C] = j
     c_point[0, C] = px
@@ -199,22 +235,30 @@ def _add_force(k, sign, c, qp, c_point, c_normal, c_fn, c_ft, Fx, Fy, Tz):
 
 
 @lazy_njit
-def _accelerations(C, N, qp, c_i, c_j, c_point, c_normal, c_fn, c_ft, F0, T0, mass,
-                   inertia, F, T, a_star):
+def _accelerations(C, N, qp, c_i, c_j, c_point, c_normal, c_fn, c_ft, c_mr, rolls, F0, T0,
+                   mass, inertia, F, T, a_star):
     """Forces, torques (:func:`.pipeline.accumulate`: the sums onto a particle in
-    ``numpy.bincount``'s order, every i, then every j) and accelerations."""
+    ``numpy.bincount``'s order, every i, then every j; the rolling torques summed
+    apart and added last) and accelerations."""
     Fx = np.zeros(N)
     Fy = np.zeros(N)
     Tz = np.zeros(N)
+    Rz = np.zeros(N)
     for c in range(C):
         _add_force(c_i[c], 1, c, qp, c_point, c_normal, c_fn, c_ft, Fx, Fy, Tz)
+        if rolls:
+            Rz[c_i[c]] += c_mr[c]
     for c in range(C):
         if c_j[c] < N:
             _add_force(c_j[c], -1, c, qp, c_point, c_normal, c_fn, c_ft, Fx, Fy, Tz)
+            if rolls:
+                Rz[c_j[c]] += -c_mr[c]
     for k in range(N):
         F[0, k] = F0[0, k] + Fx[k]
         F[1, k] = F0[1, k] + Fy[k]
         T[k] = T0[k] + Tz[k]
+        if rolls:
+            T[k] = T[k] + Rz[k]
         a_star[0, k] = F[0, k] / mass[k]
         a_star[1, k] = F[1, k] / mass[k]
         a_star[2, k] = T[k] / inertia[k]
@@ -242,11 +286,12 @@ def _correct(q, v, q_prev, v_prev, a, a_prev, a_star, dt, w):
 @lazy_njit
 def _substeps(n, dt, q, v, q_prev, v_prev, a, a_prev, dt_prev, F0, T0, mass, inertia,
               radius, local, count, V, wall_centroid, I, J, reference, skin2, hist_keys,
-              hist_ft, law, c_i, c_j, c_point, c_normal, c_fn, c_ft, c_spring, c_energy,
-              c_area, c_keys, F, T):
-    """Up to ``n`` substeps in place; returns (done, contacts of the last, keys, ft)."""
+              hist_ft, hist_mr, law, c_i, c_j, c_point, c_normal, c_fn, c_ft, c_spring,
+              c_energy, c_area, c_keys, c_mr, c_mr_spring, F, T):
+    """Up to ``n`` substeps in place; returns (done, contacts of the last, keys, ft, mr)."""
     N = q.shape[1]
     nmax = V.shape[1]
+    rolls = law[6] > 0.0
     qp = np.empty((3, N))
     vp = np.empty((3, N))
     a_star = np.empty((3, N))
@@ -257,7 +302,7 @@ def _substeps(n, dt, q, v, q_prev, v_prev, a, a_prev, dt_prev, F0, T0, mass, ine
         w = dt / dt_prev
         _predict(q, v, a, a_prev, dt, w, qp, vp)
         if not _moved(qp, reference) < skin2:
-            return step, C, hist_keys, hist_ft
+            return step, C, hist_keys, hist_ft, hist_mr
         _rotate(local, qp, V)
         C = 0
         for p in range(I.shape[0]):
@@ -272,18 +317,20 @@ def _substeps(n, dt, q, v, q_prev, v_prev, a, a_prev, dt_prev, F0, T0, mass, ine
                                        Sa, Sb, ea, eb, la, lb, NA, NB, acc, pts)
             if not g[0, 0] > 0.0:
                 continue
-            _contact(i, j, N, qp, vp, mass, wall_centroid, g, law, dt, hist_keys,
-                     hist_ft, V.shape[0], c_i, c_j, c_point, c_normal, c_fn, c_ft, c_spring,
-                     c_energy, c_area, c_keys, C)
+            _contact(i, j, N, qp, vp, mass, inertia, wall_centroid, g, law, dt, hist_keys,
+                     hist_ft, hist_mr, V.shape[0], c_i, c_j, c_point, c_normal, c_fn, c_ft,
+                     c_spring, c_energy, c_area, c_keys, c_mr, c_mr_spring, C)
             C += 1
-        _accelerations(C, N, qp, c_i, c_j, c_point, c_normal, c_fn, c_ft, F0, T0, mass,
-                       inertia, F, T, a_star)
+        _accelerations(C, N, qp, c_i, c_j, c_point, c_normal, c_fn, c_ft, c_mr, rolls, F0,
+                       T0, mass, inertia, F, T, a_star)
         _correct(q, v, q_prev, v_prev, a, a_prev, a_star, dt, w)
         dt_prev = dt
         order = np.argsort(c_keys[:C], kind="mergesort")
         hist_keys = c_keys[:C][order].copy()
         hist_ft = c_spring[:C][order].copy()
-    return n, C, hist_keys, hist_ft
+        if rolls:
+            hist_mr = c_mr_spring[:C][order].copy()
+    return n, C, hist_keys, hist_ft, hist_mr
 
 
 def run_substeps(n, dt, q, v, hist, F0, T0, mass, inertia, radius, local, count, V,
@@ -325,8 +372,9 @@ def run_substeps(n, dt, q, v, hist, F0, T0, mass, inertia, radius, local, count,
         Substeps done (``< n`` when the next one needs a rebuild of the candidate
         pairs).
     contacts : tuple or None
-        ``(i, j, point, normal, fn, ft, ft_spring, energy, area, keys)`` of the last
-        substep done, ``None`` if none was done.
+        ``(i, j, point, normal, fn, ft, ft_spring, energy, area, keys, mr, mr_spring)``
+        of the last substep done (``mr``, ``mr_spring`` ``None`` without rolling
+        resistance), ``None`` if none was done.
     F, T
         Total force and torque of the last substep's evaluation.
     """
@@ -336,21 +384,23 @@ def run_substeps(n, dt, q, v, hist, F0, T0, mass, inertia, radius, local, count,
     N = q.shape[1]
     c_i, c_j, c_keys = (np.empty(P, dtype=np.int64) for _ in range(3))
     c_point, c_normal = np.empty((2, P)), np.empty((2, P))
-    c_fn, c_ft, c_spring, c_energy, c_area = (np.empty(P) for _ in range(5))
+    c_fn, c_ft, c_spring, c_energy, c_area, c_mr, c_mr_spring = (np.empty(P) for _ in range(7))
     F, T = np.empty((2, N)), np.empty(N)
-    law_values = np.array([law.E, law.mu, law.gamma, law.gt, law.kt_ratio, law.damping_cap])
+    law_values = np.array([law.E, law.mu, law.gamma, law.gt, law.kt_ratio, law.damping_cap,
+                           law.mu_r, law.eta_r])
     arrays = [np.array(x, dtype=float, copy=True) for x in (hist.q_prev, hist.v_prev, hist.a,
                                                             hist.a_prev)]
-    done, C, keys, ft = _substeps(
+    done, C, keys, ft, mr = _substeps(
         n, dt, q, v, *arrays, float(hist.dt_prev), F0, T0, mass, inertia, radius, local,
         count, V, wall_centroid, I, J, reference, (0.5 * margin) ** 2, history.keys,
-        history.ft, law_values, c_i, c_j, c_point, c_normal, c_fn, c_ft, c_spring, c_energy,
-        c_area, c_keys, F, T)
+        history.ft, history.mr, law_values, c_i, c_j, c_point, c_normal, c_fn, c_ft, c_spring,
+        c_energy, c_area, c_keys, c_mr, c_mr_spring, F, T)
     if done == 0:
         return 0, None, F, T
     hist.q_prev, hist.v_prev, hist.a, hist.a_prev = arrays
     hist.dt_prev = dt
-    history.keys, history.ft = keys, ft
+    history.keys, history.ft, history.mr = keys, ft, mr
+    rolling = (c_mr[:C], c_mr_spring[:C]) if law.rolls else (None, None)
     contacts = (c_i[:C], c_j[:C], c_point[:, :C], c_normal[:, :C], c_fn[:C], c_ft[:C],
-                c_spring[:C], c_energy[:C], c_area[:C], c_keys[:C])
+                c_spring[:C], c_energy[:C], c_area[:C], c_keys[:C], *rolling)
     return done, contacts, F, T

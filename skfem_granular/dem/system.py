@@ -291,7 +291,7 @@ class DEMSystem:
             q_new[:, imposed], v_new[:, imposed] = q_imp[:, imposed], v_imp[:, imposed]
         p.q[...] = q_new
         p.v[...] = v_new
-        self.contact_history.replace(cf.keys, cf.ft_spring)
+        self.contact_history.replace(cf.keys, cf.ft_spring, cf.mr_spring)
         self.contacts = cf
         self.t += dt
         self.steps += 1
@@ -372,7 +372,7 @@ class DEMSystem:
             nb.margin, self.contact_history, self.law)
         if done:
             cf = ContactForces(*c[:9])
-            cf.keys = c[9]
+            cf.keys, cf.mr, cf.mr_spring = c[9:]
             self.contacts = cf
             self.force, self.torque = F, T
             for _ in range(done):
@@ -419,7 +419,8 @@ class DEMSystem:
         snapshot.restore(self, snap)
 
     def save_state(self) -> dict:
-        """Copy of the full dynamic state (positions, velocities, BDF2 and contact history)."""
+        """Copy of the full dynamic state (positions, velocities, BDF2 and contact history;
+        the rolling springs' torques only with rolling resistance)."""
         return {
             "t": self.t, "steps": self.steps,
             "q": self.particles.q.copy(), "v": self.particles.v.copy(),
@@ -428,7 +429,7 @@ class DEMSystem:
             "contact_ft": self.contact_history.ft.copy(),
             "external_force": self.external_force.copy(),
             "external_torque": self.external_torque.copy(),
-        }
+        } | ({"contact_mr": self.contact_history.mr.copy()} if self.law.rolls else {})
 
     def restore_state(self, state: dict) -> None:
         """Restore a state from :meth:`save_state` (arrays are copied in place)."""
@@ -443,6 +444,7 @@ class DEMSystem:
         self.contact_history = ContactHistory()
         self.contact_history.keys = np.array(state["contact_keys"], dtype=np.int64)
         self.contact_history.ft = np.array(state["contact_ft"], dtype=float)
+        self.contact_history.mr = np.array(state.get("contact_mr", ()), dtype=float)
         self.external_force[...] = state["external_force"]
         self.external_torque[...] = state["external_torque"]
         self.neighbours.invalidate()

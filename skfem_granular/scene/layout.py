@@ -52,6 +52,11 @@ CONTACT_DOCS: Docs = {
     "gamma_t": None,
     "kt_ratio": None,
     "damping_cap": None,
+    "mu_r": KeyDoc("float", "rolling friction coefficient: contacts resist rolling with a "
+                   "torque up to mu_r times the rolling radius times the normal force "
+                   "(elastic-plastic spring-dashpot; 0: free rolling)", ">= 0"),
+    "eta_r": KeyDoc("float", "rolling damping: fraction of the rolling spring's critical "
+                    "damping", ">= 0"),
 }
 
 #: The TOML keys of a particle's ``motion = {...}``: the fields of

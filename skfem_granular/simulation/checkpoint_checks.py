@@ -71,6 +71,8 @@ def check_dem(dem, where, K):
         check_array(where, "dem.contact_keys", keys, getattr(keys, "shape", ()),
                      dtype=np.int64)
         check_array(where, "dem.contact_ft", dem["contact_ft"], keys.shape)
+        if "contact_mr" in dem:
+            check_array(where, "dem.contact_mr", dem["contact_mr"], keys.shape)
     bdf2 = dem.get("bdf2")
     if isinstance(bdf2, dict):
         for name in ("q_prev", "v_prev", "a", "a_prev"):

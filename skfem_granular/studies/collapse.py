@@ -46,20 +46,23 @@ def summarise_collapses(records: Iterable[dict]) -> list[dict]:
     Returns
     -------
     list of dict
-        Per set-up (state, medium, core ratio, coupling): ``seeds`` and, for each of
-        :data:`SUMMARY_KEYS`, :func:`~skfem_granular.collapse.realisations` of its values
-        (mean, sample standard deviation, min, max, count; None without values).
+        Per set-up (state, medium, core ratio, coupling, rolling friction): ``seeds``
+        and, for each of :data:`SUMMARY_KEYS`, :func:`~skfem_granular.collapse.realisations`
+        of its values (mean, sample standard deviation, min, max, count; None without
+        values).
     """
     from ..collapse import realisations
 
     groups: dict = {}
     for r in records:
         groups.setdefault((r["state"], r["medium"], r["core_ratio"],
-                           r.get("coupling", "monolithic")), []).append(r)
+                           r.get("coupling", "monolithic"), r.get("rolling_friction", 0.0)),
+                          []).append(r)
     out = []
-    for (state, medium, core, coupling), rs in sorted(groups.items(), key=lambda kv: str(kv[0])):
+    for (state, medium, core, coupling, mu_r), rs in sorted(groups.items(),
+                                                           key=lambda kv: str(kv[0])):
         row = {"state": state, "medium": medium, "core_ratio": core, "coupling": coupling,
-               "seeds": [r["seed"] for r in rs]}
+               "rolling_friction": mu_r, "seeds": [r["seed"] for r in rs]}
         for key in SUMMARY_KEYS:
             vals = [r[key] for r in rs if r[key] is not None]
             row[key] = realisations(vals) if vals else None

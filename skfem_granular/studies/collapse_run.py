@@ -70,6 +70,8 @@ class CollapseRun:
         The deposition's time limit (s) when the packing is prepared (> 0).
     coupling : {"monolithic", "split"}
         Immersed: the coupled solver (``Scene.coupling``); ``"split"`` for many grains.
+    rolling_friction : float
+        The contacts' rolling friction coefficient ``mu_r`` (>= 0; 0: free rolling).
     """
 
     n: int
@@ -86,6 +88,7 @@ class CollapseRun:
     vtu_every: int = 250
     packing_t_max: float = 3.0
     coupling: str = "monolithic"
+    rolling_friction: float = 0.0
 
     def __post_init__(self):
         # plain Python numbers (a numpy integer from np.arange would not go into JSON)
@@ -95,7 +98,7 @@ class CollapseRun:
                 raise ValueError(f"{name} = {v!r}: must be an integer >= {low}")
             object.__setattr__(self, name, int(v))
         for name in ("core_ratio", "aspect", "t_end_tau", "stop_ratio", "t_min_tau",
-                     "packing_t_max"):
+                     "packing_t_max", "rolling_friction"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
                 raise ValueError(f"{name} = {v!r}: must be a number")
@@ -118,6 +121,9 @@ class CollapseRun:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} = {v!r}: must be finite and > 0")
+        if not (np.isfinite(self.rolling_friction) and self.rolling_friction >= 0):
+            raise ValueError(f"rolling_friction = {self.rolling_friction!r}: must be finite "
+                             "and >= 0")
         if self.to_rest:
             if not 0.0 < self.stop_ratio < 1.0:
                 raise ValueError(f"stop_ratio = {self.stop_ratio!r}: must be in (0, 1)")
@@ -127,10 +133,12 @@ class CollapseRun:
 
     @property
     def key(self) -> str:
-        """The run's name and its folder's: ``dense_dry_s0``, ``loose_immersed_core0.9_s2``."""
+        """The run's name and its folder's: ``dense_dry_s0``, ``loose_immersed_core0.9_s2``,
+        ``dense_dry_s1_mur0.1``."""
         core = f"_core{self.core_ratio:g}" if self.medium == "immersed" else ""
         solver = "_split" if self.medium == "immersed" and self.coupling == "split" else ""
-        return f"{self.state}_{self.medium}{core}_s{self.seed}{solver}"
+        rolling = f"_mur{self.rolling_friction:g}" if self.rolling_friction else ""
+        return f"{self.state}_{self.medium}{core}_s{self.seed}{solver}{rolling}"
 
 
 def _choices(name: str, values) -> list:
@@ -272,8 +280,8 @@ def _simulation(run: CollapseRun, pk, t_end: float, folder: Path):
     if (folder / "checkpoint.npz").exists():
         return Simulation.resume(folder)
     scene = column_scene(pk, fluid=run.medium == "immersed", core_ratio=run.core_ratio,
-                         t_end=t_end, name=folder.name, output_dir=str(folder),
-                         vtu_every=run.vtu_every)
+                         mu_r=run.rolling_friction, t_end=t_end, name=folder.name,
+                         output_dir=str(folder), vtu_every=run.vtu_every)
     scene = replace(scene, checkpoint_every=run.checkpoint_every)
     if run.medium == "immersed":
         scene = replace(scene, coupling=run.coupling)
@@ -406,8 +414,8 @@ def execute_collapse(run: CollapseRun, out_dir, packings=None) -> dict:
                 "message": f"{run.key}: {summary.get('status')} at step "
                            f"{summary.get('steps')} ({why})"}
     rec = {"run": run.key, "state": run.state, "medium": run.medium,
-           "core_ratio": run.core_ratio, "coupling": run.coupling, "seed": run.seed,
-           "grains": pk.n,
+           "core_ratio": run.core_ratio, "coupling": run.coupling,
+           "rolling_friction": run.rolling_friction, "seed": run.seed, "grains": pk.n,
            "solid_fraction": pk.solid_fraction, "tau_c": tau, **cost,
            "steps": summary.get("steps"), "remeshes": summary.get("remeshes"),
            "factorizations": summary.get("factorizations"),
