@@ -16,12 +16,18 @@ checkout, a user's virtual environment), else the user's cache directory
 (``~/.cache/numba``). Where none of these can be written (a read-only
 installation with a read-only home), numba refuses ``cache=True``; the kernels
 are then compiled without the disk cache, in every process, instead of failing.
+
+A first call, which compiles or loads the kernels, is a :func:`~skfem_granular.signals.deferred`
+zone: a SIGINT or SIGTERM that stops a run at once waits until it is done (raised
+inside numba's compiler it crashed or broke it).
 """
 
 from __future__ import annotations
 
 import functools
 import sys
+
+from .signals import deferred
 
 __all__ = ["compile_module", "lazy_njit", "njit_cached"]
 
@@ -48,8 +54,9 @@ def lazy_njit(func):
 
     @functools.wraps(func)
     def first_call(*args):
-        compile_module(module)
-        return getattr(sys.modules[module], func.__name__)(*args)
+        with deferred():  # numba compiles or loads at this call: no signal raised inside
+            compile_module(module)
+            return getattr(sys.modules[module], func.__name__)(*args)
 
     first_call.py_func = func
     return first_call
@@ -61,6 +68,7 @@ def compile_module(module: str) -> None:
     if not names:
         return
     namespace = sys.modules[module].__dict__
-    compiled = {name: njit_cached(namespace[name].py_func) for name in names}
-    namespace.update(compiled)
-    del _PENDING[module]
+    with deferred():  # importing numba, building its dispatchers
+        compiled = {name: njit_cached(namespace[name].py_func) for name in names}
+        namespace.update(compiled)
+        del _PENDING[module]

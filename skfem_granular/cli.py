@@ -40,8 +40,6 @@ import gc
 import sys
 from dataclasses import replace
 
-from ._validate import MAX_WORKERS, in_range
-
 
 class _UsageError(Exception):
     """A bad command line (reported in one line, like bad scene values)."""
@@ -182,7 +180,7 @@ def main(argv=None) -> int:
 def _main(argv, whole_process: bool = False) -> int:
     """:func:`main` with SIGINT/SIGTERM before and after a run's loop reported in one line
     (the whole process: ignored once the exit status is decided)."""
-    from .simulation.signals import StopNow, startup_signals
+    from .signals import StopNow, startup_signals
 
     try:
         with startup_signals(ignore_after=whole_process):
@@ -274,6 +272,8 @@ def _budget(args):
     if args.max_elements is not None:
         kw["max_elements"] = args.max_elements
     if args.max_memory is not None:  # checked in GB, as given (the budget's bound: 1e6 B)
+        from ._validate import in_range
+
         kw["max_memory"] = in_range("--max-memory", args.max_memory, 1e-3, 1e6) * 1e9
     return Budget(**kw)
 
@@ -350,6 +350,8 @@ def _study(args) -> int:
 
     out = args.out or f"out/study_{args.study.replace('-', '_')}{'_smoke' if args.smoke else ''}"
     try:
+        from ._validate import MAX_WORKERS, in_range
+
         in_range("--workers", args.workers, 1, MAX_WORKERS, integer=True)
         require_matplotlib()  # before any run and before the output folder is made
         _check_out("--out", out)

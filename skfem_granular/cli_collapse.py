@@ -51,7 +51,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Run the ``collapse`` subcommand; returns the exit code."""
-    from .simulation.signals import StopNow
+    from .signals import StopNow
     from .studies import plan_collapse, run_collapse_study
 
     tau = args.tau if args.tau is not None else (20.0 if args.to_rest else 8.0)

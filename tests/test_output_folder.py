@@ -354,7 +354,7 @@ def test_second_signal_in_the_callers_loop_still_writes_everything(tmp_path):
     """Library use: the second SIGTERM lands in the caller's loop body (StopNow, a
     BaseException, reaches the caller); the generator, closed, writes the history of the
     accepted steps and the summary, and restores the handlers."""
-    from skfem_granular.simulation.signals import StopNow
+    from skfem_granular.signals import StopNow
 
     before = signal.getsignal(signal.SIGTERM)
     sc = replace(Scene.bundled("single_particle"), time=TimeSpec(1e-4, 1e-5), output_dir=None)

@@ -73,16 +73,17 @@ def _stored(hist_keys, hist_values, key):
 
 
 @lazy_njit
-def _rolling(law, fn, kn, r0, r1, wall, w_rel, Ii, Ij, mr_old, dt):
-    """Rolling torque, spring torque and spring energy
-    (:func:`.contact_law.rolling_torque`, the radius and inertia of
-    :func:`.pipeline.apply_contact_law`); ``Ii``, ``Ij`` the bodies' moments of inertia
-    about the point of action (``Ij`` unused on a wall)."""
+def _rolling(law, fn, kn, r0, r1, wall, w_rel, inertia, mass, i, j, mr_old, dt):
+    """Rolling torque, spring torque and spring energy of the contact of ``i`` and ``j``
+    (:func:`.contact_law.rolling_torque`; the radius and the inertia about the point of
+    action as :func:`.pipeline.apply_contact_law` forms them)."""
+    Ii = inertia[i] + mass[i] * r0**2
     if wall:
         R_r = r0
         I_r = Ii
     else:
         R_r = r0 * r1 / (r0 + r1)
+        Ij = inertia[j] + mass[j] * r1**2
         I_r = Ii * Ij / (Ii + Ij)
     mu_r = law[6]
     kr = 2.25 * kn * mu_r**2 * R_r**2
@@ -167,10 +168,8 @@ def _contact(i, j, N, qp, vp, mass, inertia, wall_centroid, g, law, dt, hist_key
     energy = E * area**2 / (2.0 * L * length) if length > 0 else 0.0
     energy += ft_spring**2 / (2.0 * kt) if kt > 0 else 0.0
     if law[6] > 0.0:
-        Ii = inertia[i] + mi * r0**2
-        Ij = 0.0 if wall else inertia[j] + mass[j] * r1**2
-        mr, mr_spring, e_r = _rolling(law, fn, kn, r0, r1, wall, wi - wj, Ii, Ij,
-                                      _stored(hist_keys, hist_mr, key), dt)
+        mr, mr_spring, e_r = _rolling(law, fn, kn, r0, r1, wall, wi - wj, inertia, mass, i,
+                                      j, _stored(hist_keys, hist_mr, key), dt)
         energy += e_r
         c_mr[C] = mr
         c_mr_spring[C] = mr_spring

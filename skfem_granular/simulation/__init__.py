@@ -7,7 +7,7 @@
 - :mod:`~skfem_granular.simulation.budget`: steps, triangles and memory estimated and
   checked against limits before a run;
 - :mod:`~skfem_granular.simulation.folder`: an output folder belongs to one run (lock);
-- :mod:`~skfem_granular.simulation.signals`: SIGINT/SIGTERM stop a run cleanly;
+- :mod:`~skfem_granular.signals`: SIGINT/SIGTERM stop a run cleanly;
 - :mod:`~skfem_granular.simulation.recorder`, :mod:`~skfem_granular.simulation.report`:
   what a run writes as it goes, its summary.
 """

@@ -4,7 +4,7 @@
 <skfem_granular.simulation.Simulation.evolve>`: the loop only calls it. With no
 output folder every call does nothing. Each file is written inside the
 simulation's :meth:`StopSignals.critical
-<skfem_granular.simulation.signals.StopSignals.critical>` section, so a second
+<skfem_granular.signals.StopSignals.critical>` section, so a second
 signal never tears one.
 """
 

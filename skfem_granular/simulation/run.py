@@ -24,7 +24,7 @@ step: the step is recorded, a checkpoint is written (so the run can be
 resumed, bit for bit), the history and the summary are written, and the
 generator ends as if the run had reached its end (``summary["status"] ==
 "stopped"``, ``summary["stopped_by"] == "SIGTERM"``). A second signal stops
-the run at once (:mod:`~skfem_granular.simulation.signals`): the history of
+the run at once (:mod:`~skfem_granular.signals`): the history of
 the accepted steps and the summary are written (``summary["stopped_at_once"]``),
 the last checkpoint stays. The previous handlers are restored when the loop ends.
 
@@ -53,13 +53,13 @@ from ..coupled.stepper import CoupledStepper, SimulationError
 from ..dem import DEMSystem
 from ..io import History, check_writable
 from ..scene import Scene
+from ..signals import StopNow, StopSignals, deferred
 from .budget import Budget
 from .dry import DryStepper
 from .effects import contacts_needed, scene_warnings
 from .folder import OutputFolder
 from .recorder import RunOutput
 from .report import summarize
-from .signals import StopNow, StopSignals
 
 
 @dataclass
@@ -134,6 +134,7 @@ class Simulation:
         out = output_dir if output_dir is not None else scene.output_dir
         self.output_dir = None if out is None else Path(out)
         self.folder = None
+        self._holds_lock = False
         if self.output_dir is not None:
             check_writable(self.output_dir / "summary.json")
             self.folder = OutputFolder(self.output_dir, "overwrite" if overwrite else "new")
@@ -374,14 +375,13 @@ class Simulation:
             files or a live run's lock (nothing is written).
         """
         t_start = time.perf_counter()
-        if self.folder is not None:
-            self.folder.acquire()  # refuses another run's output or a live lock: nothing written
-        bar = self._progress_bar(progress)
-        self.status, self.stopped_by, self.stopped_at_once = "running", None, False
-        signals = StopSignals()
-        out = RunOutput(self, signals, self._resumed_frames, self._resumed_from)
-        self._output = out
         try:
+            self._take_lock()
+            bar = self._progress_bar(progress)
+            self.status, self.stopped_by, self.stopped_at_once = "running", None, False
+            signals = StopSignals()
+            out = RunOutput(self, signals, self._resumed_frames, self._resumed_from)
+            self._output = out
             with signals, threadpool_limits(limits=1, user_api="blas"):
                 try:
                     out.open()
@@ -419,8 +419,17 @@ class Simulation:
                         self._wrap_up(out, t_start)
         finally:
             self._output = None
-            if self.folder is not None:
+            if self._holds_lock and self.folder is not None:
                 self.folder.release()
+                self._holds_lock = False
+
+    def _take_lock(self) -> None:
+        """Take the output folder's lock (refused: another run's output or a live lock);
+        a deferred zone, so a signal cannot come between taking it and knowing it ours."""
+        with deferred():
+            if self.folder is not None:
+                self.folder.acquire()
+                self._holds_lock = True
 
     def _progress_bar(self, progress):
         sc = self.scene
@@ -501,7 +510,9 @@ class Simulation:
                 pass
         except StopNow:  # a second signal between two steps: the generator writes, then ends
             steps.close()
-        assert self.result is not None  # the generator writes it however it ends
+            if self.result is None:  # before the loop opened: nothing run, nothing written
+                raise
+        assert self.result is not None  # the generator writes it however its loop ends
         return self.result
 
     def fluid_energy(self) -> float:
