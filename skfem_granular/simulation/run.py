@@ -389,7 +389,7 @@ class Simulation:
                         out.frame(0.0)
                     for t, step in self.stepper.evolve():
                         checkpointed = self._after_step(t, step, out)
-                        bar.update(1)
+                        _count_step(bar)
                         yield t, step
                         if signals.stopped_by is not None:  # SIGINT/SIGTERM during the step
                             self.stopped_by = signals.stopped_by
@@ -432,6 +432,8 @@ class Simulation:
                 self._holds_lock = True
 
     def _progress_bar(self, progress):
+        """The tqdm bar of this process's steps; its clock restarts after the first
+        (:func:`_count_step`)."""
         sc = self.scene
         n_steps = max(1, int(math.ceil(sc.time.t_end / sc.time.dt - 1e-9)))
         n_steps = max(0, n_steps - self.steps_done)
@@ -529,3 +531,16 @@ class Simulation:
         :meth:`evolve`'s loop) or ``"running"``.
         """
         return summarize(self, hist)
+
+
+def _count_step(bar) -> None:
+    """One step done on ``bar``. The first step of a process includes compiling or loading
+    the kernels and building the first systems: the bar's clock starts again after it, so
+    the time left it shows comes from the steps that follow (the first is counted as done,
+    tqdm's ``initial``)."""
+    if not bar.disable and bar.n == bar.initial == 0:
+        bar.reset()
+        bar.initial = bar.n = bar.last_print_n = 1
+        bar.refresh()
+    else:
+        bar.update(1)
