@@ -103,6 +103,8 @@ def main(argv=None):
     ap.add_argument("--smoke", action="store_true", help="30 grains, 0.1 tau_c, seed 0")
     ap.add_argument("--mu-r", type=float, default=0.0,
                     help="rolling friction coefficient of the contacts (0: free rolling)")
+    ap.add_argument("--stiffness", type=float, default=1e6,
+                    help="contact stiffness E of the packings (N/m; stiffer: less overlap)")
     ap.add_argument("--to-rest", action="store_true",
                     help="end a run when its kinetic energy is below --stop-ratio of its peak")
     ap.add_argument("--stop-ratio", type=float, default=1e-3)
@@ -126,7 +128,7 @@ def main(argv=None):
                              stop_ratio=a.stop_ratio, t_min_tau=a.t_min,
                              checkpoint_every=a.checkpoint_every,
                              packing_t_max=a.packing_t_max, coupling=a.coupling,
-                             rolling_friction=a.mu_r)
+                             rolling_friction=a.mu_r, contact_stiffness=a.stiffness)
     except ValueError as exc:
         ap.error(str(exc))
 

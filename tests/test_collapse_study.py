@@ -72,6 +72,10 @@ def test_plan_is_the_matrix_with_one_folder_per_run():
     assert keys[:4] == ["dense_dry_s0", "dense_immersed_core0.7_s0",
                         "dense_immersed_core0.9_s0", "loose_dry_s0"]
     assert all(r.core_ratio == 1.0 for r in runs if r.medium == "dry")
+    other = plan_collapse(30, media=["immersed"], cores=[0.95], seeds=[1],
+                          rolling_friction=0.1, contact_stiffness=1e7)
+    assert [r.key for r in other] == ["dense_immersed_core0.95_s1_mur0.1_E1e+07",
+                                      "loose_immersed_core0.95_s1_mur0.1_E1e+07"]
 
 
 def test_records_summary_and_measures_against_the_saved_history(inline, packings):
@@ -182,6 +186,8 @@ def test_immersed_run_records_its_mesh(packings, tmp_path):
     (dict(t_end_tau=0.0), "t_end_tau = 0.0: must be finite and > 0"),
     (dict(to_rest=True, stop_ratio=1.5), "stop_ratio = 1.5: must be in (0, 1)"),
     (dict(to_rest=True, t_min_tau=9.0), "t_min_tau = 9.0: must satisfy"),
+    (dict(rolling_friction=-0.1), "rolling_friction = -0.1: must be finite and >= 0"),
+    (dict(contact_stiffness=0.0), "contact_stiffness = 0.0: must be finite and > 0"),
 ])
 def test_bad_run_one_line(change, message):
     spec = dict(n=30, state="dense", medium="dry") | change

@@ -46,7 +46,8 @@ def summarise_collapses(records: Iterable[dict]) -> list[dict]:
     Returns
     -------
     list of dict
-        Per set-up (state, medium, core ratio, coupling, rolling friction): ``seeds``
+        Per set-up (state, medium, core ratio, coupling, rolling friction, contact
+        stiffness): ``seeds``
         and, for each of :data:`SUMMARY_KEYS`, :func:`~skfem_granular.collapse.realisations`
         of its values (mean, sample standard deviation, min, max, count; None without
         values).
@@ -56,13 +57,14 @@ def summarise_collapses(records: Iterable[dict]) -> list[dict]:
     groups: dict = {}
     for r in records:
         groups.setdefault((r["state"], r["medium"], r["core_ratio"],
-                           r.get("coupling", "monolithic"), r.get("rolling_friction", 0.0)),
-                          []).append(r)
+                           r.get("coupling", "monolithic"), r.get("rolling_friction", 0.0),
+                           r.get("contact_stiffness", 1e6)), []).append(r)
     out = []
-    for (state, medium, core, coupling, mu_r), rs in sorted(groups.items(),
-                                                           key=lambda kv: str(kv[0])):
+    for (state, medium, core, coupling, mu_r, E), rs in sorted(groups.items(),
+                                                              key=lambda kv: str(kv[0])):
         row = {"state": state, "medium": medium, "core_ratio": core, "coupling": coupling,
-               "rolling_friction": mu_r, "seeds": [r["seed"] for r in rs]}
+               "rolling_friction": mu_r, "contact_stiffness": E,
+               "seeds": [r["seed"] for r in rs]}
         for key in SUMMARY_KEYS:
             vals = [r[key] for r in rs if r[key] is not None]
             row[key] = realisations(vals) if vals else None
@@ -130,10 +132,15 @@ def merge_records(path, new: list) -> list:
     return records
 
 
-def _prepare(n: int, state: str, seed: int, packings: Path, aspect: float,
-             t_max: float) -> None:
-    """Prepare one column on a worker (nothing sent back)."""
-    cached_packing(n, state, seed, packings, aspect=aspect, t_max=t_max)
+def _column(run: CollapseRun) -> tuple:
+    """What decides a run's packing (runs with the same one share its file)."""
+    return (run.n, run.state, run.seed, run.aspect, run.contact_stiffness)
+
+
+def _prepare(run: CollapseRun, packings: Path) -> None:
+    """Prepare the column of ``run`` on a worker (nothing sent back)."""
+    cached_packing(run.n, run.state, run.seed, packings, aspect=run.aspect,
+                   t_max=run.packing_t_max, E=run.contact_stiffness)
 
 
 def _prepare_all(executor: Executor, runs: list, packings: Path) -> dict:
@@ -141,10 +148,9 @@ def _prepare_all(executor: Executor, runs: list, packings: Path) -> dict:
     (two workers would otherwise prepare the same one at once); column -> error line."""
     jobs = {}
     for r in runs:
-        k = (r.n, r.state, r.seed, r.aspect)
+        k = _column(r)
         if k not in jobs:
-            jobs[k] = executor.submit(_prepare, r.n, r.state, r.seed, packings, r.aspect,
-                                      r.packing_t_max)
+            jobs[k] = executor.submit(_prepare, r, packings)
     errors = {}
     for k, fut in jobs.items():
         try:
@@ -246,7 +252,7 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
             unprepared = _prepare_all(executor, runs, packings)
             futs = {}
             for r in runs:
-                if (why := unprepared.get((r.n, r.state, r.seed, r.aspect))) is not None:
+                if (why := unprepared.get(_column(r))) is not None:
                     arrived(r, failed(r, f"its column could not be prepared: {why}"))
                 else:
                     futs[executor.submit(execute_collapse, r, out_dir, packings)] = r
