@@ -10,7 +10,8 @@ reading the scene, meshing, loading the compiled kernels) and the first steps al
 inside the window. A try passes when the process exits with ``128 + signal`` (or is ended
 by the signal's default action, which a shell also reports as ``128 + signal``, before the
 interpreter ran any of the library's code and with nothing written; or 0 when it finished
-before the signal), prints no traceback, leaves no lock, and leaves its folder
+before the signal, or it came after the last step and the summary says "completed"),
+prints no traceback, leaves no lock, and leaves its folder
 either untouched (absent or empty) or resumable (a readable checkpoint, a complete
 history; every tenth such folder is resumed to the end to prove it). Writes
 ``benchmarks/results/signal_faults_<tag>.json``: every try (delay, exit code, what was
@@ -70,22 +71,31 @@ def _folder_state(out: Path) -> str:
     return "resumable"
 
 
+def _send(proc, sig, delay: float, second) -> int:
+    """The signal after ``delay`` s (again ``second`` s later); how many were sent."""
+    time.sleep(delay)
+    sent = 0
+    for wait in (0.0, second):
+        if wait is None or proc.poll() is not None:
+            break
+        time.sleep(wait)
+        proc.send_signal(sig)
+        sent += 1
+    return sent
+
+
+def _completed(out: Path) -> bool:
+    summary = out / "summary.json"
+    return summary.exists() and json.loads(summary.read_text()).get("status") == "completed"
+
+
 def _one_try(k, rng, sig, window, double, work: Path) -> dict:
     out = work / f"try{k:04d}"
     delay = float(rng.uniform(0.0, window))
     second = float(rng.uniform(0.0, 0.05)) if double else None
-    proc = _launch(out)
     t0 = time.monotonic()
-    time.sleep(delay)
-    sent = 0
-    if proc.poll() is None:
-        proc.send_signal(sig)
-        sent = 1
-        if second is not None:
-            time.sleep(second)
-            if proc.poll() is None:
-                proc.send_signal(sig)
-                sent = 2
+    proc = _launch(out)
+    sent = _send(proc, sig, delay, second)
     try:
         _, err = proc.communicate(timeout=300)
     except subprocess.TimeoutExpired:
@@ -93,18 +103,17 @@ def _one_try(k, rng, sig, window, double, work: Path) -> dict:
         _, err = proc.communicate()
     code = proc.returncode
     state = _folder_state(out)
+    # a signal that came after the last step leaves a whole run: exit 0, "completed"
+    after_end = bool(sent and code == 0 and _completed(out))
     # -sig: the signal's default action, before the interpreter ran any of the library's code
-    ok_code = (code == 128 + sig or (code == -sig and state == "untouched")) if sent \
-        else code == 0
-    finished = code == 0
-    if sent and code == 0:
-        ok_code = False  # the signal was lost: the run went on to its end
+    stopped = code == 128 + sig or (code == -sig and state == "untouched")
+    ok_code = (stopped or after_end) if sent else code == 0
     rec = {"try": k, "delay_s": delay, "second_after_s": second, "signals_sent": sent,
            "exit": code, "elapsed_s": time.monotonic() - t0, "folder": state,
-           "traceback": "Traceback" in err, "stderr_lines": len(err.strip().splitlines()),
+           "after_the_last_step": after_end, "traceback": "Traceback" in err,
+           "stderr_lines": len(err.strip().splitlines()),
            "stderr_tail": err.strip().splitlines()[-1:] if err.strip() else []}
-    rec["ok"] = bool((ok_code or (finished and not sent)) and not rec["traceback"]
-                     and state in ("untouched", "resumable"))
+    rec["ok"] = bool(ok_code and not rec["traceback"] and state in ("untouched", "resumable"))
     return rec
 
 
@@ -143,7 +152,8 @@ def main(argv=None) -> int:
     failed = [r for r in records if not r["ok"]]
     res = {"benchmark": "signal_faults", "signal": a.signal, "window_s": a.window,
            "tries": a.tries, "double": a.double, "seed": a.seed, "failed": len(failed),
-           "lost": sum(r["signals_sent"] > 0 and r["exit"] == 0 for r in records),
+           "lost": sum(r["signals_sent"] > 0 and r["exit"] == 0 and not r["after_the_last_step"]
+                       for r in records),
            "tracebacks": sum(r["traceback"] for r in records),
            "folders": {s: sum(r["folder"] == s for r in records)
                        for s in sorted({r["folder"] for r in records})},

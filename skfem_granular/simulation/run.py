@@ -385,8 +385,10 @@ class Simulation:
             with signals, threadpool_limits(limits=1, user_api="blas"):
                 try:
                     out.open()
-                    if self.steps_done == 0:
+                    if self.steps_done == 0 and self._resumed_from is None:
                         out.frame(0.0)
+                        if self.scene.checkpoint_every:  # a start to resume from, however
+                            out.checkpoint()             # early a second signal stops it
                     for t, step in self.stepper.evolve():
                         checkpointed = self._after_step(t, step, out)
                         _count_step(bar)
