@@ -1,13 +1,14 @@
 """Benchmark: SIGTERM/SIGINT at random instants of a run's life, start-up included.
 
 Usage: ``python benchmarks/signal_faults.py [--tries 200] [--double 50] [--signal SIGTERM]
-[--window 3.0] [--seed 0] [--tag NAME]``.
+[--window 3.0] [--seed 0] [--cold] [--tag NAME]``.
 
 Each try launches ``skfem-granular run single-particle --t-end 3e-4`` (checkpoint every 5
 steps) in a fresh folder and sends the signal after a delay drawn uniformly from
 ``[0, window]`` seconds (a double try sends a second one 0-50 ms later). Start-up (imports,
 reading the scene, meshing, loading the compiled kernels) and the first steps all fall
-inside the window. A try passes when the process exits with ``128 + signal`` (or is ended
+inside the window; with ``--cold`` every try starts with an empty numba cache, so the
+kernels compile during start-up (a first run's case, several seconds). A try passes when the process exits with ``128 + signal`` (or is ended
 by the signal's default action, which a shell also reports as ``128 + signal``, before the
 interpreter ran any of the library's code and with nothing written; or 0 when it finished
 before the signal, or it came after the last step and the summary says "completed"),
@@ -42,8 +43,10 @@ def _default_sigint():
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def _launch(out: Path, args=ARGV):
+def _launch(out: Path, args=ARGV, cache=None):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    if cache is not None:  # numba compiles every kernel anew: the longest start-up
+        env["NUMBA_CACHE_DIR"] = str(cache)
     return subprocess.Popen([sys.executable, "-m", "skfem_granular.cli", *args, "--out",
                              str(out)] if "--resume" not in args else
                             [sys.executable, "-m", "skfem_granular.cli", *args],
@@ -89,12 +92,12 @@ def _completed(out: Path) -> bool:
     return summary.exists() and json.loads(summary.read_text()).get("status") == "completed"
 
 
-def _one_try(k, rng, sig, window, double, work: Path) -> dict:
+def _one_try(k, rng, sig, window, double, work: Path, cold: bool = False) -> dict:
     out = work / f"try{k:04d}"
     delay = float(rng.uniform(0.0, window))
     second = float(rng.uniform(0.0, 0.05)) if double else None
     t0 = time.monotonic()
-    proc = _launch(out)
+    proc = _launch(out, cache=work / f"cache{k:04d}" if cold else None)
     sent = _send(proc, sig, delay, second)
     try:
         _, err = proc.communicate(timeout=300)
@@ -132,6 +135,8 @@ def main(argv=None) -> int:
     ap.add_argument("--window", type=float, default=3.0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--tag", default=None)
+    ap.add_argument("--cold", action="store_true",
+                    help="an empty numba cache for every try: the kernels compile at start-up")
     a = ap.parse_args(argv)
     if a.tries < 0 or a.double < 0 or not 0 < a.window <= 60:
         ap.error("--tries and --double must be >= 0, --window in (0, 60]")
@@ -143,7 +148,7 @@ def main(argv=None) -> int:
         subprocess.run([sys.executable, "-m", "skfem_granular.cli", *ARGV, "--out",
                         str(work / "warm")], capture_output=True, check=True)  # kernel cache
         for k in range(a.tries + a.double):
-            rec = _one_try(k, rng, sig, a.window, k >= a.tries, work)
+            rec = _one_try(k, rng, sig, a.window, k >= a.tries, work, a.cold)
             if rec["ok"] and rec["folder"] == "resumable" and k % 10 == 0:
                 rec["resumed"] = _resume_ok(work / f"try{k:04d}")
                 rec["ok"] = rec["resumed"]
@@ -151,6 +156,7 @@ def main(argv=None) -> int:
             print(json.dumps(rec), flush=True)
     failed = [r for r in records if not r["ok"]]
     res = {"benchmark": "signal_faults", "signal": a.signal, "window_s": a.window,
+           "cold_numba_cache": a.cold,
            "tries": a.tries, "double": a.double, "seed": a.seed, "failed": len(failed),
            "lost": sum(r["signals_sent"] > 0 and r["exit"] == 0 and not r["after_the_last_step"]
                        for r in records),
