@@ -8,11 +8,12 @@ steps) in a fresh folder and sends the signal after a delay drawn uniformly from
 ``[0, window]`` seconds (a double try sends a second one 0-50 ms later). Start-up (imports,
 reading the scene, meshing, loading the compiled kernels) and the first steps all fall
 inside the window; with ``--cold`` every try starts with an empty numba cache, so the
-kernels compile during start-up (a first run's case, several seconds). A try passes when the process exits with ``128 + signal`` (or is ended
-by the signal's default action, which a shell also reports as ``128 + signal``, before the
-interpreter ran any of the library's code and with nothing written; or 0 when it finished
-before the signal, or it came after the last step and the summary says "completed"),
-prints no traceback, leaves no lock, and leaves its folder
+kernels compile during start-up (a first run's case, several seconds). A try passes when
+the process exits with ``128 + signal`` (or is ended by the signal's default action, which
+a shell also reports as ``128 + signal``, before the interpreter ran any of the library's
+code and with nothing written; or 0 when it finished before the signal, or the signal came
+after the last step and the summary says "completed"), prints no traceback, leaves no
+lock, and leaves its folder
 either untouched (absent or empty) or resumable (a readable checkpoint, a complete
 history; every tenth such folder is resumed to the end to prove it). Writes
 ``benchmarks/results/signal_faults_<tag>.json``: every try (delay, exit code, what was
