@@ -75,22 +75,27 @@ def _folder_state(out: Path) -> str:
     return "resumable"
 
 
-def _send(proc, sig, delay: float, second) -> int:
-    """The signal after ``delay`` s (again ``second`` s later); how many were sent."""
+def _send(proc, sig, delay: float, second) -> tuple[int, float]:
+    """The signal after ``delay`` s (again ``second`` s later); how many were sent, and
+    the wall-clock time of the first."""
     time.sleep(delay)
-    sent = 0
+    sent, first = 0, time.time()
     for wait in (0.0, second):
         if wait is None or proc.poll() is not None:
             break
         time.sleep(wait)
         proc.send_signal(sig)
         sent += 1
-    return sent
+    return sent, first
 
 
-def _completed(out: Path) -> bool:
-    summary = out / "summary.json"
-    return summary.exists() and json.loads(summary.read_text()).get("status") == "completed"
+def _after_the_end(out: Path, sent_at: float) -> bool:
+    """Whether the run had completed its steps when the signal came: its summary says
+    "completed" and its last checkpoint (written after the last step: 30 steps, one every
+    5) is older than the signal."""
+    summary, ck = out / "summary.json", out / "checkpoint.npz"
+    return (summary.exists() and json.loads(summary.read_text()).get("status") == "completed"
+            and ck.exists() and ck.stat().st_mtime <= sent_at)
 
 
 def _one_try(k, rng, sig, window, double, work: Path, cold: bool = False) -> dict:
@@ -99,7 +104,7 @@ def _one_try(k, rng, sig, window, double, work: Path, cold: bool = False) -> dic
     second = float(rng.uniform(0.0, 0.05)) if double else None
     t0 = time.monotonic()
     proc = _launch(out, cache=work / f"cache{k:04d}" if cold else None)
-    sent = _send(proc, sig, delay, second)
+    sent, sent_at = _send(proc, sig, delay, second)
     try:
         _, err = proc.communicate(timeout=300)
     except subprocess.TimeoutExpired:
@@ -108,7 +113,7 @@ def _one_try(k, rng, sig, window, double, work: Path, cold: bool = False) -> dic
     code = proc.returncode
     state = _folder_state(out)
     # a signal that came after the last step leaves a whole run: exit 0, "completed"
-    after_end = bool(sent and code == 0 and _completed(out))
+    after_end = bool(sent and code == 0 and _after_the_end(out, sent_at))
     # -sig: the signal's default action, before the interpreter ran any of the library's code
     stopped = code == 128 + sig or (code == -sig and state == "untouched")
     ok_code = (stopped or after_end) if sent else code == 0
