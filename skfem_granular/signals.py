@@ -223,6 +223,7 @@ def startup_signals(ignore_after: bool = False):
     try:
         yield
     finally:
+        _received.clear()  # acted on, or the command has ended: not for a later run
         if ignore_after:
             for sig in caught:
                 signal.signal(sig, signal.SIG_IGN)

@@ -49,7 +49,14 @@ def test_a_zone_that_discards_drops_the_signal():
     with startup_signals():
         with deferred(raise_pending=False):
             signal.raise_signal(signal.SIGINT)
-    assert signals.take_received() == "SIGINT"  # recorded all the same
+        assert signals.take_received() == "SIGINT"  # recorded all the same
+
+
+def test_a_signal_seen_at_start_up_is_forgotten_when_its_context_closes():
+    with pytest.raises(StopNow), startup_signals():
+        signal.raise_signal(signal.SIGTERM)
+    with StopSignals() as later:  # a later run in the same process is not stopped by it
+        assert later.stopped_by is None
 
 
 def test_inside_numbas_compiler_the_signal_comes_again_after_it():
