@@ -398,7 +398,8 @@ def test_version_3_checkpoint_holding_the_history_is_still_read(tmp_path):
 
 def _without_later_entries(directory):
     """Rewrite the checkpoint in ``directory`` as the version before mesh repairs wrote it:
-    no ``Scene.mesh_repair``, ``CoupledState.p_prev``, travel poses or repair counters."""
+    no ``Scene.mesh_repair``, ``CoupledState.p_prev``, travel poses or repair counters, no
+    rolling resistance in the contact law."""
     import json
     import zipfile
 
@@ -411,6 +412,8 @@ def _without_later_entries(directory):
         arrays = {n: npz[n] for n in npz.files if n != "header.json"}
     content = header["content"]["$dict"]
     content["scene"]["fields"].pop("mesh_repair")
+    for name in ("mu_r", "eta_r"):
+        content["scene"]["fields"]["contact_law"]["fields"].pop(name)
     stepper = content["stepper"]["$dict"]
     stepper["state"]["fields"].pop("p_prev")
     arrays.pop(stepper.pop("travel_poses")["$array"])

@@ -15,6 +15,7 @@ torque of Iwashita & Oda (1998) in the form Ai et al. (2011) recommend, see
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -51,6 +52,10 @@ class ContactLaw:
         Rolling damping ratio, ``>= 0``: the fraction of the rolling spring's
         critical damping (0.3 in Ai et al. 2011).
     """
+
+    #: fields added after checkpoints were first written: read at their defaults from one
+    #: that lacks them
+    LATER_FIELDS: ClassVar[tuple[str, ...]] = ("mu_r", "eta_r")
 
     E: float = 1e7
     mu: float = 0.3
