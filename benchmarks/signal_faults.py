@@ -98,9 +98,10 @@ def _after_the_end(out: Path, sent_at: float) -> bool:
             and ck.exists() and ck.stat().st_mtime <= sent_at)
 
 
-def _one_try(k, rng, sig, window, double, work: Path, cold: bool = False) -> dict:
+def _one_try(k, rng, sig, window, double, work: Path, cold: bool = False,
+             start: float = 0.0) -> dict:
     out = work / f"try{k:04d}"
-    delay = float(rng.uniform(0.0, window))
+    delay = float(rng.uniform(start, window))
     second = float(rng.uniform(0.0, 0.05)) if double else None
     t0 = time.monotonic()
     proc = _launch(out, cache=work / f"cache{k:04d}" if cold else None)

@@ -107,7 +107,10 @@ def test_sixty_signals_at_random_instants(tmp_path):
     bad = []
     for k in range(60):
         sig = signal.SIGTERM if k % 2 else signal.SIGINT
-        rec = faults._one_try(k, rng, sig, 3.0, k % 5 == 0, tmp_path)
+        # SIGINT in the interpreter's own first hundredths of a second (before any of the
+        # library's code) is Python's KeyboardInterrupt: documented, not drawn here
+        start = 0.0 if sig == signal.SIGTERM else 0.2
+        rec = faults._one_try(k, rng, sig, 3.0, k % 5 == 0, tmp_path, start=start)
         if not rec["ok"]:
             bad.append(rec)
     assert not bad, bad
