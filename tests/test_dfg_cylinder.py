@@ -52,6 +52,25 @@ def test_2d3_short_inflow_and_start(coarse_2d3):
     assert np.max(np.abs(s.cl)) < 0.02
 
 
+#: c_D(2.05) of the coarse run done in one go (dt = 0.01 from t = 0), measured
+CD_205 = 1.78450917
+
+
+def test_warm_start_same_mesh(coarse_2d3):
+    """Restarted at t = 2 (the first step backward Euler, the history lost) on the same
+    mesh: c_D(2.05) within 5.8e-6 of the run done in one go (1.1e-4 after the first step)."""
+    r = dfg.run_dfg("2D-3", coarse_2d3.flow.mesh, 0.01, 2.05, initial=coarse_2d3.flow)
+    assert r.info["t0"] == pytest.approx(2.0) and r.steps == 5
+    assert r.cd[-1] == pytest.approx(CD_205, rel=2e-5)
+
+
+def test_warm_start_other_polygon(coarse_2d3):
+    """Interpolated to a mesh around a 96-gon (nodes just inside the 64-gon's outline):
+    c_D(2.05) within 5.1e-4 of the 64-gon's run (measured; the meshes differ)."""
+    r = dfg.run_dfg("2D-3", dfg.channel_mesh(96, 0.025), 0.01, 2.05, initial=coarse_2d3.flow)
+    assert r.cd[-1] == pytest.approx(CD_205, rel=2e-3)
+
+
 def test_peak_parabola():
     t = np.linspace(0.0, 1.0, 11)
     y = 2.0 - 3.0 * (t - 0.537) ** 2
@@ -89,6 +108,7 @@ def test_inflow_speed():
     (lambda: dfg.run_dfg("2D-3", None, 0.0), "dt"),
     (lambda: dfg.run_dfg("2D-3", None, 0.01, 9.0), "t_end"),
     (lambda: dfg.run_dfg("2D-2", None, 0.01, 5.0, tol=1.0), "tol"),
+    (lambda: dfg.run_dfg("2D-2", None, 0.01, 5.0, initial="flow"), "initial"),
 ])
 def test_bad_input(call, field):
     with pytest.raises(ValueError, match=f"^{field} = "):

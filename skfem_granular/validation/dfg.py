@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validate import in_range
-from ..fluid import Fluid
+from ..fluid import Flow, Fluid
 from ..fluid.points import PointLocator, evaluation_matrix
 from ..fluid.unsteady import evolve
 
@@ -65,6 +65,10 @@ CASES = ("2D-2", "2D-3")
 #: Corrector iterations per step before the step is halved (the library's default is 12;
 #: a halved fixed step stays halved, which would blur a step-size study).
 MAX_ITERATIONS = 20
+#: Point location tolerance (element sizes) when a warm start is interpolated to a mesh
+#: with another cylinder polygon: its nodes may lie up to the polygons' sagitta
+#: difference (6e-5 for a 64-gon) inside the old polygon.
+START_TOL = 0.1
 #: Duration of 2D-3 (the inflow is half a sine period).
 T_END_2D3 = 8.0
 
@@ -179,6 +183,10 @@ class DFGSeries:
         iteration, corrector iterations, summed over the run.
     cpu_time, wall_time : float
         Process CPU time and wall time of the time loop, seconds.
+    flow : Flow
+        The last state (a warm start for another run, :func:`run_dfg`'s ``initial``).
+    info : dict
+        ``t0``, ``t_end``, ``tol``, ``ramp`` and the smallest and largest step taken.
     """
 
     case: str
@@ -194,6 +202,7 @@ class DFGSeries:
     iterations: int = 0
     cpu_time: float = 0.0
     wall_time: float = 0.0
+    flow: Flow | None = None
     info: dict = field(default_factory=dict)
 
     @property
@@ -202,20 +211,34 @@ class DFGSeries:
         return int(self.t.size)
 
 
-def _check_run(case, dt, t_end, tol):
+def _check_run(case, dt, t_end, tol, t0: float) -> tuple[float, float, float | None]:
     _check_case(case)
     dt = float(in_range("dt", dt, 1e-6, 0.1))
     hi = T_END_2D3 if case == "2D-3" else 1000.0
     if t_end is None:
-        t_end = T_END_2D3 if case == "2D-3" else 30.0
-    t_end = float(in_range("t_end", t_end, dt, hi))
+        t_end = T_END_2D3 if case == "2D-3" else t0 + 30.0
+    t_end = float(in_range("t_end", t_end, t0 + dt, hi))
     if tol is not None:
         tol = float(in_range("tol", tol, 1e-8, 0.1))
     return dt, t_end, tol
 
 
+def _start(initial) -> dict:
+    """``evolve`` options of a run that starts from ``initial`` (a Flow, any mesh)."""
+    if initial is None:
+        return {}
+    if not isinstance(initial, Flow) or initial.t is None:
+        raise ValueError(f"initial = {type(initial).__name__}: must be the Flow of an unsteady "
+                         "run (e.g. DFGSeries.flow), with its time")
+
+    def u0(x, y):  # P2 nodes of the new mesh; a finer polygon lies just outside a coarser one
+        return tuple(initial.velocity(np.vstack([x, y]), tol=START_TOL))
+
+    return {"u0": u0, "t0": float(initial.t)}
+
+
 def run_dfg(case: str, mesh, dt: float, t_end: float | None = None, *, tol: float | None = None,
-            solver="auto", ramp: float = 1.0, callback: Callable | None = None) -> DFGSeries:
+            solver="auto", ramp: float = 1.0, initial: Flow | None = None) -> DFGSeries:
     """Run a DFG case with the library's BDF2 solver; the coefficient time series.
 
     Parameters
@@ -227,7 +250,8 @@ def run_dfg(case: str, mesh, dt: float, t_end: float | None = None, *, tol: floa
     dt : float
         Step (the initial one when adaptive), in [1e-6, 0.1].
     t_end : float, optional
-        End time, in [dt, 8] for 2D-3 (default 8) and [dt, 1000] for 2D-2 (default 30).
+        End time, in [t0 + dt, 8] for 2D-3 (default 8) and [t0 + dt, 1000] for 2D-2
+        (default t0 + 30); ``t0`` is 0 or the time of ``initial``.
     tol : float, optional
         Adaptive steps with this local error tolerance (relative to 1.5), in
         [1e-8, 0.1]; ``None`` (default): fixed steps (halved only where the
@@ -236,42 +260,51 @@ def run_dfg(case: str, mesh, dt: float, t_end: float | None = None, *, tol: floa
         Linear solver, as in :func:`~skfem_granular.fluid.solve_steady`.
     ramp : float
         2D-2: inflow ramp time (see :func:`inflow_speed`).
-    callback : callable, optional
-        ``callback(t, flow)`` after every accepted step.
+    initial : Flow, optional
+        Start from this flow at its time (the velocity interpolated to ``mesh``; e.g.
+        the ``flow`` of a coarser run of the same case) instead of from rest at 0.
+        2D-2's periodic state does not depend on where it started; a warm start
+        saves the fine mesh the spin-up.
 
     Returns
     -------
     DFGSeries
     """
-    dt, t_end, tol = _check_run(case, dt, t_end, tol)
+    options = _start(initial)
+    dt, t_end, tol = _check_run(case, dt, t_end, tol, options.get("t0", 0.0))
     steps = evolve(mesh, Fluid(DENSITY, VISCOSITY), _boundary_data(case, ramp), dt=dt,
                    t_end=t_end, adaptive=tol is not None, tol=1e-3 if tol is None else tol,
                    convection=True, viscous="laplace", velocity_scale=U_MAX, solver=solver,
-                   max_iterations=MAX_ITERATIONS)
-    rows, probe, totals = [], None, np.zeros(3, dtype=int)
-    scale = 2.0 / (DENSITY * U_MEAN**2 * DIAMETER)
+                   max_iterations=MAX_ITERATIONS, **options)
     cpu0, wall0 = time.process_time(), time.perf_counter()
+    rows, totals, flow = _record(steps)
+    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+    n_p = mesh.p.shape[1]
+    return DFGSeries(case, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3],
+                     dofs=int(2 * (n_p + mesh.facets.shape[1]) + n_p),
+                     triangles=int(mesh.t.shape[1]), dt=dt, rejected=int(totals[0]),
+                     refreshes=int(totals[1]), iterations=int(totals[2]), cpu_time=cpu,
+                     wall_time=wall, flow=flow,
+                     info={"t0": options.get("t0", 0.0), "t_end": t_end, "tol": tol,
+                           "ramp": ramp, "dt_min": float(rows[:, 4].min(initial=dt)),
+                           "dt_max": float(rows[:, 4].max(initial=0.0))})
+
+
+def _record(steps) -> tuple[np.ndarray, np.ndarray, Flow | None]:
+    """Run the generator; rows ``(t, c_D, c_L, dp, dt)``, the summed (rejected,
+    refreshes, iterations) and the last flow."""
+    rows, probe, totals, flow = [], None, np.zeros(3, dtype=int), None
+    scale = 2.0 / (DENSITY * U_MEAN**2 * DIAMETER)
     for t, flow in steps:
         if probe is None:
             cells, X = PointLocator(flow.mesh).locate(PROBES, name="pressure probes")
             probe = evaluation_matrix(flow.space.pb, cells, X)
         fx, fy = flow.force(CYLINDER)
         p = probe @ flow.p
-        rows.append((t, scale * fx, scale * fy, p[0] - p[1], flow.step.dt))
         st = flow.step
+        rows.append((t, scale * fx, scale * fy, p[0] - p[1], st.dt))
         totals += (st.rejected, st.refreshes, st.iterations)
-        if callback is not None:
-            callback(t, flow)
-    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
-    r = np.array(rows, dtype=float).reshape(-1, 5)
-    n_p = mesh.p.shape[1]
-    dofs = 2 * (n_p + mesh.facets.shape[1]) + n_p
-    return DFGSeries(case, r[:, 0], r[:, 1], r[:, 2], r[:, 3], dofs=int(dofs),
-                     triangles=int(mesh.t.shape[1]), dt=dt, rejected=int(totals[0]),
-                     refreshes=int(totals[1]), iterations=int(totals[2]), cpu_time=cpu,
-                     wall_time=wall, info={"t_end": t_end, "tol": tol, "ramp": ramp,
-                                         "dt_min": float(r[:, 4].min(initial=dt)),
-                                         "dt_max": float(r[:, 4].max(initial=0.0))})
+    return np.array(rows, dtype=float).reshape(-1, 5), totals, flow
 
 
 def peak(t, y) -> tuple[float, float]:
