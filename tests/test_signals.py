@@ -5,32 +5,22 @@ command line: SIGTERM (and SIGTERM twice) at random instants over a run's first
 seconds (imports, scene, mesh, kernels loading, the first steps). Every try must exit
 with 143 (or be ended by the signal's default action before the library's code ran, which
 a shell reports as 143 too), print no traceback, leave no lock, and leave its folder
-untouched or resumable. The default suite sends 12 signals; the slow one 60, and
-``benchmarks/signal_faults.py`` as many as asked.
+untouched or resumable (the harness: tests/fault_injection.py). The default suite sends 12
+signals; the slow one 60, and ``benchmarks/signal_faults.py`` as many as asked.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import signal
 import sys
 import time
-from pathlib import Path
 
+import fault_injection
 import numpy as np
 import pytest
 
 from skfem_granular import signals
 from skfem_granular.signals import StopNow, StopSignals, deferred, startup_signals
-
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "signal_faults.py"
-
-
-def _faults():
-    spec = importlib.util.spec_from_file_location("signal_faults", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_a_signal_inside_a_deferred_zone_is_raised_when_it_closes():
@@ -88,13 +78,12 @@ def test_a_start_up_signal_whose_exception_was_lost_stops_the_run_after_a_step()
 
 @pytest.mark.parametrize("double, tries", [(False, 8), (True, 4)])
 def test_sigterm_at_random_instants_of_start_up_and_the_first_steps(tmp_path, double, tries):
-    faults = _faults()
     rng = np.random.default_rng(7 + double)
     bad = []
     for k in range(tries):
-        rec = faults._one_try(k, rng, signal.SIGTERM, 3.0, double, tmp_path)
+        rec = fault_injection.one_try(k, rng, signal.SIGTERM, 3.0, double, tmp_path)
         if rec["ok"] and rec["folder"] == "resumable" and k % 4 == 0:
-            rec["ok"] = faults._resume_ok(tmp_path / f"try{k:04d}")
+            rec["ok"] = fault_injection.resume_ok(tmp_path / f"try{k:04d}")
         if not rec["ok"]:
             bad.append(rec)
     assert not bad, bad
@@ -102,7 +91,6 @@ def test_sigterm_at_random_instants_of_start_up_and_the_first_steps(tmp_path, do
 
 @pytest.mark.slow
 def test_sixty_signals_at_random_instants(tmp_path):
-    faults = _faults()
     rng = np.random.default_rng(11)
     bad = []
     for k in range(60):
@@ -110,7 +98,7 @@ def test_sixty_signals_at_random_instants(tmp_path):
         # SIGINT in the interpreter's own first hundredths of a second (before any of the
         # library's code) is Python's KeyboardInterrupt: documented, not drawn here
         start = 0.0 if sig == signal.SIGTERM else 0.2
-        rec = faults._one_try(k, rng, sig, 3.0, k % 5 == 0, tmp_path, start=start)
+        rec = fault_injection.one_try(k, rng, sig, 3.0, k % 5 == 0, tmp_path, start=start)
         if not rec["ok"]:
             bad.append(rec)
     assert not bad, bad

@@ -51,10 +51,11 @@ from .. import timestep as ts
 from ..coupled.build import build_mesh
 from ..coupled.stepper import CoupledStepper, SimulationError
 from ..dem import DEMSystem
+from ..fluid.linsolve import FactorizationMemoryError
 from ..io import History, check_writable
 from ..scene import Scene
 from ..signals import StopNow, StopSignals, deferred
-from .budget import Budget
+from .budget import Budget, taylor_hood_unknowns
 from .dry import DryStepper
 from .effects import contacts_needed, scene_warnings
 from .folder import OutputFolder
@@ -173,6 +174,7 @@ class Simulation:
                 cores = self.dem.core_outlines()
                 budget.check_mesh(scene, cores)
                 mesh = build_mesh(scene, cores)
+            budget.check_unknowns(scene, taylor_hood_unknowns(mesh.mesh))
             self.timings["meshing"] += time.perf_counter() - t0
             self.stepper = CoupledStepper(scene, self.dem, mesh,
                                           contacts_active=self.contacts_active,
@@ -384,11 +386,14 @@ class Simulation:
             self._output = out
             with signals, threadpool_limits(limits=1, user_api="blas"):
                 try:
-                    out.open()
-                    if self.steps_done == 0 and self._resumed_from is None:
-                        out.frame(0.0)
-                        if self.scene.checkpoint_every:  # a start to resume from, however
-                            out.checkpoint()             # early a second signal stops it
+                    # the folder's first files and the start checkpoint together: a second
+                    # signal waits for both, so the folder is untouched or resumable
+                    with deferred():
+                        out.open()
+                        if self.steps_done == 0 and self._resumed_from is None:
+                            out.frame(0.0)
+                            if self.scene.checkpoint_every:
+                                out.checkpoint()
                     for t, step in self.stepper.evolve():
                         checkpointed = self._after_step(t, step, out)
                         _count_step(bar)
@@ -409,7 +414,8 @@ class Simulation:
                     else:
                         self.status = "closed"  # the caller broke off the loop
                     raise
-                except (SimulationError, FloatingPointError, OSError) as exc:
+                except (SimulationError, FloatingPointError, OSError,
+                        FactorizationMemoryError) as exc:
                     self._failed(exc, out)
                 except BaseException as exc:  # KeyboardInterrupt, errors
                     self.status = "failed"
