@@ -33,13 +33,12 @@ for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMB
 
 import argparse  # noqa: E402 - the thread limits must be set before numpy loads
 import json  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from record import commit, machine  # noqa: E402
 
 from skfem_granular.validation import dfg  # noqa: E402
 
@@ -65,21 +64,6 @@ SERIES_SAMPLES = 1600
 
 #: acceptance: relative errors of the 2D-3 maxima
 ACCEPT_2D3 = {"cd_max": 1e-3, "cl_max": 1e-2}
-
-
-def commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                              capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
-def machine() -> dict:
-    return {"platform": platform.platform(), "processor": platform.processor(),
-            "cpus": os.cpu_count(), "python": platform.python_version(),
-            "threads": {v: os.environ.get(v) for v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS",
-                                                        "OPENBLAS_NUM_THREADS")}}
 
 
 def precursor() -> tuple[dfg.DFGSeries, dict]:

@@ -55,6 +55,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from record import commit
 
 LENGTH, HEIGHT = 2.2, 0.41
 CENTER, RADIUS = (0.2, 0.2), 0.05
@@ -554,14 +555,6 @@ def versions(ng_version: str) -> dict:
     except Exception:  # noqa: BLE001 - optional
         pass
     return out
-
-
-def commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                              capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def main(argv=None) -> int:

@@ -85,8 +85,9 @@ def _parser() -> argparse.ArgumentParser:
                      help="refuse a mesh of more triangles than this (estimated before "
                           "meshing; default 2e6)")
     run.add_argument("--max-memory", type=float, metavar="GB",
-                     help="refuse a run whose systems need more memory than this (estimated "
-                          "before meshing; default 16 GB)")
+                     help="refuse a run whose peak memory would exceed this (estimated "
+                          "before meshing and again from the mesh; default: the memory this "
+                          "machine has available)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     sub.add_parser("scenes", help="list the bundled scenes (names for 'run')")
     from .cli_collapse import add_parser as add_collapse

@@ -17,7 +17,12 @@ from skfem_granular.coupled.build import build_mesh
 from skfem_granular.dem import DEMSystem, Polygon
 from skfem_granular.scene import MeshSpec, Scene, bundled_scenes
 from skfem_granular.simulation import Budget, BudgetError, Simulation
-from skfem_granular.simulation.budget import Estimate, triangles
+from skfem_granular.simulation.budget import (
+    BASE_MEMORY,
+    Estimate,
+    taylor_hood_unknowns,
+    triangles,
+)
 
 
 def _cores(sc):
@@ -37,7 +42,49 @@ def test_triangle_estimate_within_a_factor_3_of_the_mesh(name):
 
 def test_unknowns_and_memory_follow_the_triangles():
     e = Estimate(steps=10, triangles=1000)
-    assert e.unknowns == 4500 and e.memory == 4500 * 9000.0
+    assert e.unknowns == 4500 and e.memory == BASE_MEMORY + 4500 * 5000.0
+    assert Estimate(10, 1000, "split").memory == BASE_MEMORY + 4500 * 2500.0
+
+
+def test_taylor_hood_unknowns_are_the_spaces_dofs():
+    """2 (vertices + edges) velocity and one pressure unknown per vertex: the DOFs of the
+    library's Taylor-Hood space on the single particle's mesh."""
+    import skfem_granular as sg
+
+    mesh = build_mesh(Scene.bundled("single_particle"), _cores(Scene.bundled("single_particle")))
+    space = sg.TaylorHood(mesh.mesh)
+    assert taylor_hood_unknowns(mesh.mesh) == space.N
+
+
+def test_default_memory_limit_is_what_the_machine_has(monkeypatch):
+    """Without max_memory the refusal compares with the memory available now, names it,
+    and comes before meshing (the 1000-grain column's ~1.5M unknowns need ~6.5 GB)."""
+    from skfem_granular import memory
+
+    sc = replace(Scene.bundled("single_particle"), output_dir=None)
+    monkeypatch.setattr(memory, "available", lambda: 0.2e9)
+    with pytest.raises(BudgetError, match=r"more than the 0.2 GB this machine has available"):
+        Simulation(sc)
+    monkeypatch.setattr(memory, "available", lambda: None)  # unknown: 16 GB
+    Budget().check_mesh(sc, _cores(sc))
+    with pytest.raises(BudgetError, match=r"1.5e\+06 unknowns \(monolithic coupling\) need "
+                                          r"about 7.7 GB, more than max_memory = 4 GB"):
+        Budget(max_memory=4e9).check_unknowns(sc, 1_500_000)
+
+
+def test_built_mesh_is_checked_with_its_own_unknowns(monkeypatch):
+    """An estimate below the limit and a mesh above it: refused after meshing, before any
+    assembly (the coupled stepper is never built)."""
+    from skfem_granular.simulation import run
+
+    def never(*args, **kwargs):
+        raise AssertionError("CoupledStepper built: the refusal came after assembly")
+
+    monkeypatch.setattr(run, "CoupledStepper", never)
+    monkeypatch.setattr("skfem_granular.simulation.budget.UNKNOWNS_PER_TRIANGLE", 1e-6)
+    sc = replace(Scene.bundled("single_particle"), output_dir=None)
+    with pytest.raises(BudgetError, match=r"\(the mesh built\): about 1.67e\+03 unknowns"):
+        Simulation(sc, budget=Budget(max_memory=BASE_MEMORY + 100.0))
 
 
 def test_graded_refusal_comes_before_any_meshing(monkeypatch):
@@ -86,3 +133,30 @@ def test_a_million_particles_are_refused_before_parsing(tmp_path, capsys, monkey
     assert main(["run", str(path), "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "million.toml': 77 MB; at most 20 MB" in err[0], err
+
+
+def test_a_refused_factorisation_stops_the_run_with_one_line(tmp_path, monkeypatch):
+    """A factorisation refused for memory in the middle of a run ends it as a failed step
+    does: one line, the history and the last good state written, the folder released."""
+    from skfem_granular.fluid import superlu
+    from skfem_granular.simulation import SimulationError
+
+    calls = {"n": 0}
+    factorize = superlu.SuperLUSolver.factorize
+
+    def refuse_the_second(self, A, nu, **blocks):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise superlu.FactorizationMemoryError(
+                "SuperLU: on 1436 unknowns ... would need about 9 GB, 1 GB left")
+        return factorize(self, A, nu, **blocks)
+
+    monkeypatch.setattr(superlu.SuperLUSolver, "factorize", refuse_the_second)
+    sc = replace(Scene.bundled("single_particle"), output_dir=tmp_path / "run")
+    sim = Simulation(sc)
+    with pytest.raises(SimulationError, match=r"9 GB, 1 GB left; history and last good state "
+                                              r"written to"):
+        sim.run(progress=False)
+    assert sim.status == "failed" and calls["n"] == 2
+    assert (tmp_path / "run" / "history.csv").read_text().count("\n") >= 2
+    assert not (tmp_path / "run" / ".skfem-granular.lock").exists()

@@ -429,3 +429,25 @@ def test_krylov_corrections_to_a_looser_tolerance():
     assert n_loose < 0.7 * n_tight, (n_loose, n_tight)
     with pytest.raises(ValueError, match="correction_rtol"):
         KrylovSolver(correction_rtol=0.0)
+
+
+def test_fallback_factorisation_that_would_not_fit_is_refused(monkeypatch):
+    """Refinement that stalls (an inconsistent right-hand side of a singular system) falls
+    back to threshold pivoting, whose factors are nearly dense; when they would not fit in
+    the memory left, one FactorizationMemoryError names both sizes instead."""
+    import scipy.sparse as sp
+
+    from skfem_granular import memory
+    from skfem_granular.fluid.linsolve import FactorizationMemoryError
+    from skfem_granular.fluid.superlu import BYTES_PER_ENTRY, PIVOTED_ENTRIES_PER_SQUARED_UNKNOWN
+
+    A = sp.csr_matrix(np.array([[2.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]))
+    s = SuperLUSolver().factorize(A, 1)
+    need = PIVOTED_ENTRIES_PER_SQUARED_UNKNOWN * BYTES_PER_ENTRY * 3**2
+    monkeypatch.setattr(memory, "available", lambda: 0.5 * need)
+    with pytest.raises(FactorizationMemoryError, match=r"on 3 unknowns iterative refinement "
+                                                       r"stalled .* would need about .* GB left"):
+        s.solve(np.array([1.0, 1.0, 1.0]))
+    monkeypatch.setattr(memory, "available", lambda: 2.0 * need)  # fits: SuperLU tries it
+    with pytest.raises(RuntimeError, match="singular"):
+        s.solve(np.array([1.0, 1.0, 1.0]))

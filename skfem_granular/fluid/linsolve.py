@@ -26,10 +26,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .solver_base import SaddlePointSolver, SolverStats
-from .superlu import SuperLUSolver
+from .superlu import FactorizationMemoryError, SuperLUSolver
 
-__all__ = ["AUTO_KRYLOV_SIZE", "AUTO_PARDISO_SIZE", "KrylovSolver", "PardisoSolver",
-           "SaddlePointSolver", "SolverStats", "SuperLUSolver", "make_solver"]
+__all__ = ["AUTO_KRYLOV_SIZE", "AUTO_PARDISO_SIZE", "FactorizationMemoryError", "KrylovSolver",
+           "PardisoSolver", "SaddlePointSolver", "SolverStats", "SuperLUSolver", "make_solver"]
 
 #: Above this many unknowns ``"auto"`` switches from SuperLU to Krylov (without pypardiso).
 #: Measured on dense immersed columns in contact (coupled BDF2/Euler steps, CPU per

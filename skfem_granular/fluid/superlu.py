@@ -9,8 +9,23 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .. import memory
 from .factor_plan import plan_for
 from .solver_base import SaddlePointSolver
+
+#: Entries of threshold-pivoted factors per squared unknown, an upper bound. Without static
+#: pivots SuperLU leaves the fill-reducing order and its factors of a coupled matrix come
+#: close to dense: measured by benchmarks/fallback_fill.py, 0.126 n^2 at 1436 unknowns
+#: (the paper's particle), 0.041 n^2 at 20k (its fine mesh), 0.121 n^2 at 34k (25 grains:
+#: 43 times the static factors' entries, 1.77 GB and 116 s against 32 MB and 0.2 s).
+PIVOTED_ENTRIES_PER_SQUARED_UNKNOWN = 0.125
+#: Peak bytes of a SuperLU factorisation per entry of its factors (value, row index and
+#: the work arrays it holds while factorising; 10.0-13.2 measured with the fill above).
+BYTES_PER_ENTRY = 13.2
+
+
+class FactorizationMemoryError(MemoryError):
+    """A factorisation refused before it starts: it would need more memory than is left."""
 
 
 class _Factors(Protocol):
@@ -179,7 +194,26 @@ class SuperLUSolver(SaddlePointSolver):
 
     def _pivoted(self):
         """Threshold-pivoted factors of ``D A D`` with the scale of this factorisation (a
-        solve that falls back here has already scaled its right-hand side by it)."""
+        solve that falls back here has already scaled its right-hand side by it).
+
+        Raises
+        ------
+        FactorizationMemoryError
+            For a saddle-point matrix (pressure unknowns present), if factors of
+            :data:`PIVOTED_ENTRIES_PER_SQUARED_UNKNOWN` ``n^2`` entries would not fit in
+            the memory left (:func:`skfem_granular.memory.available`).
+        """
+        n = self._A.shape[0]
+        need = PIVOTED_ENTRIES_PER_SQUARED_UNKNOWN * BYTES_PER_ENTRY * float(n) ** 2
+        left = memory.available() if n > self.nu else None
+        if left is not None and need > left:
+            why = ("iterative refinement stalled and the threshold-pivoted factorisation it "
+                   "falls back to" if self._static else
+                   "a threshold-pivoted factorisation (no static pivoting: delta = 0)")
+            raise FactorizationMemoryError(
+                f"SuperLU: on {n} unknowns {why} would need about {need / 1e9:.3g} GB, "
+                f"{left / 1e9:.3g} GB left; a singular or inconsistent system, or too "
+                "large for threshold pivoting")
         self._static = False
         self._lu = spla.splu(self._with_scale(self._A).tocsc(), permc_spec="MMD_AT_PLUS_A",
                              diag_pivot_thresh=0.01, options=dict(SymmetricMode=True))

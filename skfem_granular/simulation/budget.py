@@ -14,8 +14,12 @@ distance (graded and field meshes; ``h`` everywhere for uniform ones) up to
 the particle's share of the domain. It is within a factor 3 of the meshes
 built for the bundled scenes (tested). Unknowns are 4.5 per triangle
 (Taylor-Hood P2-P1: two velocity components on vertices and edges, the
-pressure on vertices); memory :data:`BYTES_PER_UNKNOWN` per unknown (the
-single particle with ``delta_l = 1e-5``: 267k unknowns, 2.4 GB peak, measured).
+pressure on vertices). The peak memory is :data:`BASE_MEMORY` plus
+:data:`BYTES_PER_UNKNOWN` per unknown of the coupled scheme (the factorised
+systems dominate), measured on the collapse columns of 25 to 1000 grains; the
+default limit is the memory this machine has available when the run starts.
+Once the mesh exists, :meth:`Budget.check_unknowns` repeats the memory check with
+its exact unknowns, before anything is assembled or factorised.
 """
 
 from __future__ import annotations
@@ -25,9 +29,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Peak memory per unknown of a coupled run (bytes): 2.4 GB at 267k unknowns, measured
-#: (the 95k-unknown benchmark: 6 kB per unknown).
-BYTES_PER_UNKNOWN = 9000.0
+#: Peak memory of a coupled run per unknown, by coupling scheme (bytes), above
+#: :data:`BASE_MEMORY`. Measured peaks of dense collapse columns (core ratio 0.9) at
+#: 0.04, 0.15, 0.6 and 1.5 million unknowns: monolithic 0.32, 0.70, 2.74, 6.51 GB (the
+#: SuperLU factors of the coupled system), split 0.28, 0.54, 1.53, 3.42 GB; a single
+#: particle at 21k unknowns 0.28 GB (benchmarks/results/split_scaling_contact.json).
+BYTES_PER_UNKNOWN = {"monolithic": 5000.0, "partitioned": 5000.0, "split": 2500.0}
+#: The interpreter with the libraries loaded, the scene and its bookkeeping (bytes).
+BASE_MEMORY = 200e6
+#: The limit where the machine's available memory is unknown (bytes).
+DEFAULT_MEMORY = 16e9
 #: Unknowns per triangle of a Taylor-Hood mesh (4 velocity, 0.5 pressure).
 UNKNOWNS_PER_TRIANGLE = 4.5
 #: The field meshes' growth factor when the scene gives none.
@@ -44,6 +55,7 @@ class Estimate:
 
     steps: float
     triangles: float = 0.0
+    scheme: str = "monolithic"
 
     @property
     def unknowns(self) -> float:
@@ -51,8 +63,20 @@ class Estimate:
 
     @property
     def memory(self) -> float:
-        """Bytes."""
-        return BYTES_PER_UNKNOWN * self.unknowns
+        """Bytes at the run's peak."""
+        return peak_memory(self.unknowns, self.scheme)
+
+
+def peak_memory(unknowns: float, scheme: str = "monolithic") -> float:
+    """Estimated peak bytes of a coupled run with ``unknowns`` (velocity and pressure) and
+    the coupling ``scheme``: :data:`BASE_MEMORY` plus :data:`BYTES_PER_UNKNOWN`."""
+    return BASE_MEMORY + BYTES_PER_UNKNOWN[scheme] * unknowns
+
+
+def taylor_hood_unknowns(mesh) -> int:
+    """Velocity (P2, two components) and pressure (P1) unknowns of a triangle mesh."""
+    vertices, edges = mesh.p.shape[1], mesh.facets.shape[1]
+    return 2 * (vertices + edges) + vertices
 
 
 def _bounded(name: str, value, lo: float) -> float:
@@ -73,18 +97,31 @@ class Budget:
         the default is 50 times the longest bundled scene's.
     max_elements : int
         Mesh triangles.
-    max_memory : float
-        Bytes of the factorised systems (default 16 GB).
+    max_memory : float, optional
+        Bytes at the run's peak; default: the memory this machine has available when the
+        run is checked (:func:`skfem_granular.memory.available`; 16 GB where unknown).
     """
 
     max_steps: int = 100_000
     max_elements: int = 2_000_000
-    max_memory: float = 16e9
+    max_memory: float | None = None
 
     def __post_init__(self):
         _bounded("max_steps (--max-steps)", self.max_steps, 1)
         _bounded("max_elements (--max-elements)", self.max_elements, 100)
-        _bounded("max_memory (--max-memory)", self.max_memory, 1e6)
+        if self.max_memory is not None:
+            _bounded("max_memory (--max-memory)", self.max_memory, 1e6)
+
+    def _memory_limit(self) -> tuple[float, str]:
+        """The limit in bytes and how a refusal names it."""
+        if self.max_memory is not None:
+            return self.max_memory, f"max_memory = {self.max_memory / 1e9:.3g} GB"
+        from .. import memory
+
+        left = memory.available()
+        if left is None:
+            return DEFAULT_MEMORY, f"max_memory = {DEFAULT_MEMORY / 1e9:.3g} GB"
+        return left, f"the {left / 1e9:.3g} GB this machine has available"
 
     def check_steps(self, scene) -> None:
         """Refuse a run of more than :attr:`max_steps` steps (before anything is built)."""
@@ -97,20 +134,31 @@ class Budget:
 
     def check_mesh(self, scene, cores) -> Estimate:
         """Refuse a mesh beyond :attr:`max_elements` or :attr:`max_memory` (before meshing)."""
-        est = Estimate(scene.time.t_end / scene.time.dt, triangles(scene, cores))
+        est = Estimate(scene.time.t_end / scene.time.dt, triangles(scene, cores),
+                       scene.coupling)
         what = _size_parameter(scene)
         if est.triangles > self.max_elements:
             raise BudgetError(
                 f"{what}: the mesh would have about {est.triangles:.3g} triangles, more than "
                 f"max_elements = {self.max_elements:.3g}; use a coarser mesh or raise the "
                 "limit (--max-elements)")
-        if est.memory > self.max_memory:
-            raise BudgetError(
-                f"{what}: about {est.unknowns:.3g} unknowns would need about "
-                f"{est.memory / 1e9:.3g} GB, more than max_memory = "
-                f"{self.max_memory / 1e9:.3g} GB; use a coarser mesh or raise the limit "
-                "(--max-memory, in GB)")
+        self._check_memory(what, est.unknowns, scene.coupling, "would need")
         return est
+
+    def check_unknowns(self, scene, unknowns: int) -> None:
+        """Refuse a built mesh whose ``unknowns`` would need more than the memory limit
+        (before anything is assembled or factorised)."""
+        self._check_memory(_size_parameter(scene) + " (the mesh built)", unknowns,
+                           scene.coupling, "need")
+
+    def _check_memory(self, what: str, unknowns: float, scheme: str, verb: str) -> None:
+        need = peak_memory(unknowns, scheme)
+        limit, named = self._memory_limit()
+        if need > limit:
+            raise BudgetError(
+                f"{what}: about {unknowns:.3g} unknowns ({scheme} coupling) {verb} about "
+                f"{need / 1e9:.3g} GB, more than {named}; use a coarser mesh, the split "
+                "coupling, or raise the limit (--max-memory, in GB)")
 
 
 def _size_parameter(scene) -> str:
