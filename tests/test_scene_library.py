@@ -14,7 +14,7 @@ PAPER = ("collapse", "collapse_group", "single_particle", "single_particle_fine"
 #: the sedimentation and repose checks (docs/sedimentation.md)
 SEDIMENTATION = ("dkt_two_disks", "dkt_uhlmann", "migration_off_centre", "repose_hexagons",
                  "settling_disk_channel", "settling_disk_k3", "settling_disk_k8_tall",
-                 "settling_hexagon", "settling_rectangle")
+                 "settling_disk_re350", "settling_hexagon", "settling_rectangle")
 NAMES = tuple(sorted(PAPER + SEDIMENTATION))
 PACKAGE = Path(skfem_granular.__file__).resolve().parent
 
