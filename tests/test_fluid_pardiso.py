@@ -133,3 +133,24 @@ def test_a_dropped_pardiso_solver_releases_its_factors():
         del s
     assert held > 50.0  # 5.85M factor entries: at least 47 MB of them
     assert resident_mb() - after_one < 0.5 * held
+
+
+@needs_pardiso
+def test_a_coupled_run_on_pardiso_matches_superlu(monkeypatch):
+    """The monolithic coupled step through PARDISO (what ``"auto"`` picks from
+    AUTO_PARDISO_SIZE unknowns on, lowered here to 0): the paper's particle over 20 steps
+    follows the SuperLU run to round-off in its velocity and position."""
+    from dataclasses import replace
+
+    from skfem_granular.scene import Scene
+    from skfem_granular.simulation import Simulation
+
+    sc = replace(Scene.bundled("single_particle"), output_dir=None)
+    sc = replace(sc, time=replace(sc.time, t_end=20 * sc.time.dt))
+    ref = Simulation(sc).run(progress=False).history
+    monkeypatch.setattr(linsolve, "AUTO_PARDISO_SIZE", 0)
+    sim = Simulation(sc)
+    h = sim.run(progress=False).history
+    assert sim.stepper.coupling.solver.name == "pardiso"
+    np.testing.assert_allclose(h.vy, ref.vy, rtol=1e-9, atol=1e-12 * np.abs(ref.vy).max())
+    np.testing.assert_allclose(h.y, ref.y, rtol=1e-12)
