@@ -150,3 +150,21 @@ def resumed_between_checkpoints(scene, tmp_path, k: int):
                 checkpoint.save(sim, i, None)
                 break
     return ref, Simulation.resume(tmp_path / "part").run(progress=False).history
+
+
+def coupled_run_through(monkeypatch, size_name: str, steps: int = 20):
+    """The paper's particle over ``steps`` coupled steps with ``linsolve.<size_name>`` (the
+    size from which ``solver="auto"`` picks that solver) lowered to 0, and the same run on
+    the default solver: ``(history, reference history, solver name)``."""
+    from dataclasses import replace
+
+    from skfem_granular.fluid import linsolve
+    from skfem_granular.scene import Scene
+    from skfem_granular.simulation import Simulation
+
+    sc = replace(Scene.bundled("single_particle"), output_dir=None)
+    sc = replace(sc, time=replace(sc.time, t_end=steps * sc.time.dt))
+    ref = Simulation(sc).run(progress=False).history
+    monkeypatch.setattr(linsolve, size_name, 0)
+    sim = Simulation(sc)
+    return sim.run(progress=False).history, ref, sim.stepper.coupling.solver.name

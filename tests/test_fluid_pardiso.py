@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import annulus
+from helpers import annulus, coupled_run_through
 
 import skfem_granular as sg
 from skfem_granular.fluid import linsolve
@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = """
 import hashlib, sys
 sys.path.insert(0, {tests!r})
-from helpers import annulus
+from helpers import annulus, coupled_run_through
 import skfem_granular as sg
 mesh = annulus(1.0, 2.0, 24, 48, 0.01)
 bc = {{"inner": (1.0, 0.0), "outer": (0.0, 0.0)}}
@@ -140,17 +140,7 @@ def test_a_coupled_run_on_pardiso_matches_superlu(monkeypatch):
     """The monolithic coupled step through PARDISO (what ``"auto"`` picks from
     AUTO_PARDISO_SIZE unknowns on, lowered here to 0): the paper's particle over 20 steps
     follows the SuperLU run to round-off in its velocity and position."""
-    from dataclasses import replace
-
-    from skfem_granular.scene import Scene
-    from skfem_granular.simulation import Simulation
-
-    sc = replace(Scene.bundled("single_particle"), output_dir=None)
-    sc = replace(sc, time=replace(sc.time, t_end=20 * sc.time.dt))
-    ref = Simulation(sc).run(progress=False).history
-    monkeypatch.setattr(linsolve, "AUTO_PARDISO_SIZE", 0)
-    sim = Simulation(sc)
-    h = sim.run(progress=False).history
-    assert sim.stepper.coupling.solver.name == "pardiso"
+    h, ref, solver = coupled_run_through(monkeypatch, "AUTO_PARDISO_SIZE")
+    assert solver == "pardiso"
     np.testing.assert_allclose(h.vy, ref.vy, rtol=1e-9, atol=1e-12 * np.abs(ref.vy).max())
     np.testing.assert_allclose(h.y, ref.y, rtol=1e-12)

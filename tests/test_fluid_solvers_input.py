@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 import triangle
-from helpers import annulus, box, regular_polygon
+from helpers import annulus, box, coupled_run_through, regular_polygon
 from scipy.spatial import cKDTree
 from skfem import MeshQuad, MeshTri
 
@@ -457,17 +457,7 @@ def test_a_coupled_run_on_the_krylov_path_matches_superlu(monkeypatch):
     """The monolithic coupled step through the Krylov solver (what ``"auto"`` picks from
     AUTO_KRYLOV_SIZE unknowns on, lowered here to 0): the paper's particle over 20 steps
     follows the SuperLU run to the solvers' tolerance (measured 5e-13 in v_y)."""
-    from dataclasses import replace
-
-    from skfem_granular.scene import Scene
-    from skfem_granular.simulation import Simulation
-
-    sc = replace(Scene.bundled("single_particle"), output_dir=None)
-    sc = replace(sc, time=replace(sc.time, t_end=20 * sc.time.dt))
-    ref = Simulation(sc).run(progress=False).history
-    monkeypatch.setattr(linsolve, "AUTO_KRYLOV_SIZE", 0)
-    sim = Simulation(sc)
-    h = sim.run(progress=False).history
-    assert sim.stepper.coupling.solver.name == "krylov"
+    h, ref, solver = coupled_run_through(monkeypatch, "AUTO_KRYLOV_SIZE")
+    assert solver == "krylov"
     np.testing.assert_allclose(h.vy, ref.vy, rtol=1e-9, atol=1e-9 * np.abs(ref.vy).max())
     np.testing.assert_allclose(h.y, ref.y, rtol=1e-12)
