@@ -30,10 +30,11 @@ from dataclasses import dataclass
 import numpy as np
 
 #: Peak memory of a coupled run per unknown, by coupling scheme (bytes), above
-#: :data:`BASE_MEMORY`. Measured peaks of dense collapse columns (core ratio 0.9) at
-#: 0.04, 0.15, 0.6 and 1.5 million unknowns: monolithic 0.32, 0.70, 2.74, 6.51 GB (the
-#: SuperLU factors of the coupled system), split 0.28, 0.54, 1.53, 3.42 GB; a single
-#: particle at 21k unknowns 0.28 GB (benchmarks/results/split_scaling_contact.json).
+#: :data:`BASE_MEMORY`. Measured peaks over 10 steps (benchmarks/memory_estimate.py):
+#: dense collapse columns (core ratio 0.9) at 0.04, 0.15, 0.6 and 1.5 million unknowns,
+#: monolithic 0.46, 0.73, 2.89, 6.80 GB (the SuperLU factors of the coupled system), split
+#: 0.31, 0.56, 1.60, 3.64 GB; the paper's particle at 267k unknowns 1.96 and 1.01 GB.
+#: The estimate is 0.78-1.33 times these peaks.
 BYTES_PER_UNKNOWN = {"monolithic": 5000.0, "partitioned": 5000.0, "split": 2500.0}
 #: The interpreter with the libraries loaded, the scene and its bookkeeping (bytes).
 BASE_MEMORY = 200e6
