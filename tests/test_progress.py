@@ -7,7 +7,7 @@ predicted minutes for a run of seconds. A fake clock stands for the time.
 
 from tqdm import tqdm
 
-from skfem_granular.simulation.run import _count_step
+from skfem_granular.simulation.progress import count_step
 
 
 class Clock:
@@ -24,10 +24,10 @@ def test_the_first_step_is_left_out_of_the_rate():
     bar._time = clock
     bar.reset()
     clock.now += 30.0  # the first step: kernels and first systems
-    _count_step(bar)
+    count_step(bar)
     for _ in range(10):  # then 0.5 s a step
         clock.now += 0.5
-        _count_step(bar)
+        count_step(bar)
     d = bar.format_dict
     bar.close()
     assert d["n"] == 11 and d["initial"] == 1
@@ -40,6 +40,6 @@ def test_a_hidden_bar_takes_the_steps():
     """A disabled tqdm has no ``initial``: the first step must not reach for it."""
     bar = tqdm(total=5, disable=True)
     for _ in range(3):
-        _count_step(bar)
+        count_step(bar)
     assert bar.n == 0  # a disabled bar does not count
     bar.close()

@@ -9,7 +9,8 @@
 - :mod:`~skfem_granular.simulation.folder`: an output folder belongs to one run (lock);
 - :mod:`~skfem_granular.signals`: SIGINT/SIGTERM stop a run cleanly;
 - :mod:`~skfem_granular.simulation.recorder`, :mod:`~skfem_granular.simulation.report`:
-  what a run writes as it goes, its summary.
+  what a run writes as it goes, its summary;
+- :mod:`~skfem_granular.simulation.progress`: the progress bar.
 """
 
 from ..coupled.stepper import SimulationError

@@ -59,6 +59,7 @@ from .budget import Budget, taylor_hood_unknowns
 from .dry import DryStepper
 from .effects import contacts_needed, scene_warnings
 from .folder import OutputFolder
+from .progress import count_step, progress_bar
 from .recorder import RunOutput
 from .report import summarize
 
@@ -396,7 +397,7 @@ class Simulation:
                                 out.checkpoint()
                     for t, step in self.stepper.evolve():
                         checkpointed = self._after_step(t, step, out)
-                        _count_step(bar)
+                        count_step(bar)
                         yield t, step
                         if signals.stopped_by is not None:  # SIGINT/SIGTERM during the step
                             self.stopped_by = signals.stopped_by
@@ -440,17 +441,10 @@ class Simulation:
                 self._holds_lock = True
 
     def _progress_bar(self, progress):
-        """The tqdm bar of this process's steps; its clock restarts after the first
-        (:func:`_count_step`)."""
+        """The bar of the steps this process has left to take."""
         sc = self.scene
         n_steps = max(1, int(math.ceil(sc.time.t_end / sc.time.dt - 1e-9)))
-        n_steps = max(0, n_steps - self.steps_done)
-        show = n_steps > 50 if progress is None else progress
-        if show:  # tqdm.auto picks the notebook widget; plain tqdm when it is hidden
-            from tqdm.auto import tqdm
-        else:
-            from tqdm import tqdm
-        return tqdm(total=n_steps, disable=not show, desc=sc.name, unit="step")
+        return progress_bar(sc.name, max(0, n_steps - self.steps_done), progress)
 
     def _after_step(self, t, step, out: RunOutput) -> bool:
         """Record the accepted step: history row, frame, checkpoint, flush; True if checkpointed."""
@@ -540,15 +534,3 @@ class Simulation:
         """
         return summarize(self, hist)
 
-
-def _count_step(bar) -> None:
-    """One step done on ``bar``. The first step of a process includes compiling or loading
-    the kernels and building the first systems: the bar's clock starts again after it, so
-    the time left it shows comes from the steps that follow (the first is counted as done,
-    tqdm's ``initial``)."""
-    if not bar.disable and bar.n == bar.initial == 0:
-        bar.reset()
-        bar.initial = bar.n = bar.last_print_n = 1
-        bar.refresh()
-    else:
-        bar.update(1)
