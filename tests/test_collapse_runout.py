@@ -47,10 +47,22 @@ def test_small_irregular_columns_run_out_as_the_quasi_2d_law_on_average():
 
 
 @pytest.mark.slow
-def test_200_near_disks_run_out_as_the_2d_dem_law_within_spread():
-    """200 12-gons (seed 1): mass-front run-out at 20 tau_c is Kumar's 2D DEM law
-    within 3 SD_200; the gap front (grains within one width count) is not shorter."""
-    p = prepare_column(200, 0.8, "dense", seed=1)
-    r = run_dry(p)
-    assert r.runout <= r.runout_gap
-    assert abs(r.runout - dry_runout(p.aspect, "Kumar 2015 (2D DEM)")) <= 3 * SD_200
+def test_200_near_disks_run_out_as_the_2d_dem_law_on_average():
+    """200 12-gons, seeds 0-2: the mean mass-front run-out at 20 tau_c is Kumar's 2D DEM
+    law within three standard errors of the mean, a window that excludes the quasi-2D
+    law of Lajeunesse et al. (1.2 a, 0.36 below Kumar's at a = 0.8); the gap front (grains
+    within one width count) is never shorter. Measured 1.26, 1.33, 1.43 (mean 1.34 +-
+    0.05) against 1.34."""
+    runs = []
+    for seed in range(3):
+        p = prepare_column(200, 0.8, "dense", seed=seed)
+        r = run_dry(p)
+        assert r.runout <= r.runout_gap, seed
+        runs.append(r.runout)
+    runout = realisations(runs)
+    law = dry_runout(0.8, "Kumar 2015 (2D DEM)")
+    window = 3 * runout["std"] / np.sqrt(runout["count"])
+    assert abs(runout["mean"] - law) <= window, (runout, law)
+    assert window < abs(law - dry_runout(0.8)), (window, law)  # not Lajeunesse's law too
+    # regression pin (this library's own runs): the seeds' spread, as measured before
+    assert runout["std"] == pytest.approx(SD_200, abs=0.03)
