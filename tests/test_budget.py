@@ -160,3 +160,13 @@ def test_a_refused_factorisation_stops_the_run_with_one_line(tmp_path, monkeypat
     assert sim.status == "failed" and calls["n"] == 2
     assert (tmp_path / "run" / "history.csv").read_text().count("\n") >= 2
     assert not (tmp_path / "run" / ".skfem-granular.lock").exists()
+
+
+def test_a_split_run_is_not_told_to_use_the_split_coupling():
+    sc = replace(Scene.bundled("single_particle"), coupling="split", output_dir=None)
+    with pytest.raises(BudgetError) as info:
+        Budget(max_memory=1e6).check_unknowns(sc, 10_000)
+    assert "(split coupling) need about 0.225 GB" in str(info.value)
+    assert "the split coupling" not in str(info.value)
+    with pytest.raises(BudgetError, match="use a coarser mesh, the split coupling, or raise"):
+        Budget(max_memory=1e6).check_unknowns(replace(sc, coupling="monolithic"), 10_000)

@@ -156,10 +156,11 @@ class Budget:
         need = peak_memory(unknowns, scheme)
         limit, named = self._memory_limit()
         if need > limit:
+            split = "" if scheme == "split" else " the split coupling,"
             raise BudgetError(
                 f"{what}: about {unknowns:.3g} unknowns ({scheme} coupling) {verb} about "
-                f"{need / 1e9:.3g} GB, more than {named}; use a coarser mesh, the split "
-                "coupling, or raise the limit (--max-memory, in GB)")
+                f"{need / 1e9:.3g} GB, more than {named}; use a coarser mesh,{split} or "
+                "raise the limit (--max-memory, in GB)")
 
 
 def _size_parameter(scene) -> str:
