@@ -14,7 +14,8 @@ kernels (an exception raised inside its compiler crashed it or left it broken),
 the output folder's lock being taken, a file being written. The signal is then
 raised as :class:`StopNow` when the outermost zone closes, from ordinary code; inside
 numba's compiler (its global compiler lock held: a kernel called the first time
-with new argument types) the signal is sent again after :data:`RETRY_SECONDS`.
+with new argument types) and inside an import (raised there, numpy's C extension
+turned it into an ImportError) the signal is sent again after :data:`RETRY_SECONDS`.
 Every signal is also recorded, so that one whose exception was swallowed on its
 way (a ``__del__``, a callback) is not lost: :class:`StopSignals` takes over a
 signal that came before its loop and stops after the first step.
@@ -109,14 +110,29 @@ def _numba_compiling() -> bool:
     return module is not None and module.global_compiler_lock.is_locked()
 
 
-def _stop_now(name: str) -> None:
+#: The import system's own frames (a module being imported is executed below them).
+_IMPORT_FILES = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
+
+
+def _importing(frame) -> bool:
+    """Whether ``frame`` (a handler's) runs inside an import: an exception raised there can
+    surface as another error (numpy's C extension reports an ImportError of ``datetime``)."""
+    while frame is not None:
+        if frame.f_code.co_filename in _IMPORT_FILES:
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _stop_now(name: str, frame=None) -> None:
     """Raise :class:`StopNow` from a handler, or hold it back: inside a deferred zone until
-    the zone closes; inside numba's compiler by sending the signal again a moment later."""
+    the zone closes; inside numba's compiler or an import (``frame``, the interrupted
+    one) by sending the signal again a moment later."""
     if _zones.depth:
         if not _zones.discard:
             _zones.pending = name
         return
-    if _numba_compiling():
+    if _numba_compiling() or _importing(frame):
         again = threading.Timer(RETRY_SECONDS, os.kill, (os.getpid(), getattr(signal, name)))
         again.daemon = True
         again.start()
@@ -181,7 +197,7 @@ class StopSignals:
                  "(again: stop at once)\n")
             return
         self.at_once = True
-        _stop_now(name)
+        _stop_now(name, frame)
 
     def critical(self, raise_pending: bool = True):
         """A file being written: a second signal waits until it is complete
@@ -204,7 +220,7 @@ class StopSignals:
 def _startup_handler(signum, frame):
     name = signal.Signals(signum).name
     _received[:] = [name]
-    _stop_now(name)
+    _stop_now(name, frame)
 
 
 @contextlib.contextmanager

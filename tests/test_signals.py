@@ -113,3 +113,25 @@ def test_the_command_line_imports_no_numpy_before_its_handlers():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip()
     assert out == "[]"
+
+
+def test_inside_an_import_the_signal_comes_again_after_it(tmp_path, monkeypatch):
+    """A signal raised inside an import can surface as another error (numpy's C extension
+    reported an ImportError of ``datetime`` for a SIGTERM 0.085 s into a run): held back
+    while a module is imported, sent again, raised once the import is done."""
+    (tmp_path / "slow_module_for_signals.py").write_text(
+        "import signal, time\n"
+        "signal.raise_signal(signal.SIGTERM)\n"
+        "time.sleep(0.1)\n"
+        "FINISHED = True\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    imported = False
+    with pytest.raises(StopNow), startup_signals():
+        import slow_module_for_signals
+
+        imported = slow_module_for_signals.FINISHED  # the import was not cut short
+        for _ in range(200):  # sent again every RETRY_SECONDS until it is raised
+            time.sleep(signals.RETRY_SECONDS)
+        raise AssertionError("the signal never came back")
+    assert imported
+    signals.take_received()
