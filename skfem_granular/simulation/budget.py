@@ -33,9 +33,10 @@ import numpy as np
 #: Peak memory of a coupled run per unknown, by coupling scheme (bytes), above
 #: :data:`BASE_MEMORY`. Measured peaks over 10 steps (benchmarks/memory_estimate.py):
 #: dense collapse columns (core ratio 0.9) at 0.04, 0.15, 0.6 and 1.5 million unknowns,
-#: monolithic 0.46, 0.73, 2.89, 6.80 GB (the SuperLU factors of the coupled system), split
-#: 0.31, 0.56, 1.60, 3.64 GB; the paper's particle at 267k unknowns 1.96 and 1.01 GB.
-#: The estimate is 0.78-1.33 times these peaks.
+#: monolithic 0.46, 0.72, 2.88, 6.81 GB (the SuperLU factors of the coupled system), split
+#: 0.31, 0.56, 1.60, 3.69 GB; the paper's particle at 267k unknowns 1.96 and 1.01 GB.
+#: The estimate from the built mesh is 0.78-1.35 times these peaks, before meshing
+#: 0.88-1.36 times.
 BYTES_PER_UNKNOWN = {"monolithic": 5000.0, "partitioned": 5000.0, "split": 2500.0}
 #: The interpreter with the libraries loaded, the scene and its bookkeeping (bytes).
 BASE_MEMORY = 200e6
