@@ -539,6 +539,56 @@ def test_checkpoints_of_a_long_run_keep_their_size_and_resume_byte_for_byte(tmp_
         assert not s["warnings"]
 
 
+def _all_columns_equal(h1, h2):
+    assert len(h1) == len(h2)
+    for c in h1.STEP_COLUMNS + h1.PARTICLE_COLUMNS:
+        assert np.array_equal(getattr(h1, c), getattr(h2, c), equal_nan=True), c
+
+
+def test_a_long_history_keeps_only_its_newest_rows_in_memory(tmp_path, monkeypatch):
+    """Rows in history.csv keep their particle values in memory only while they are among
+    the newest MEMORY_BYTES (here 20 rows of the six-hexagon heap): 300 steps with a
+    checkpoint every 50 hold at most 20 such rows at every checkpoint, and their columns (read
+    back from the file) and history.csv are the in-memory run's bit for bit; the run
+    resumed from its checkpoint at step 200 (rows after it as a killed run leaves them)
+    reads back at most 20 rows' values, keeps the file (cut, not rewritten: the same
+    inode) and ends with the same history.csv and columns."""
+    import os
+    import shutil
+    from contextlib import closing
+
+    import skfem_granular.io.table as table
+
+    whole = Simulation(_heap(300), output_dir=tmp_path / "whole").run(progress=False).history
+    assert whole.dropped == 0
+    monkeypatch.setattr(table, "MEMORY_BYTES", 20 * 8 * 6 * len(whole.PARTICLE_COLUMNS))
+    lean_dir = tmp_path / "lean"
+    sim = Simulation(_heap(300), output_dir=lean_dir)
+    with closing(sim.evolve()) as steps:
+        for k, _ in enumerate(steps, start=1):
+            if k % 50 == 0:  # the file synced: rows not yet written stay in memory too
+                assert sum("x" in r for r in sim.history.rows) <= 20, k
+            if k == 200:
+                shutil.copytree(lean_dir, tmp_path / "at200")
+    lean = sim.result.history
+    assert lean.dropped >= 280 and len(lean) == 300
+    _all_columns_equal(whole, lean)
+    text = (tmp_path / "whole" / "history.csv").read_bytes()
+    assert (lean_dir / "history.csv").read_bytes() == text
+    lean.to_csv(tmp_path / "again.csv")
+    assert (tmp_path / "again.csv").read_bytes() == text
+
+    folder = tmp_path / "at200"
+    _append_rows(folder, lean_dir, 200, 7)
+    inode = os.stat(folder / "history.csv").st_ino
+    res = Simulation.resume(folder)
+    assert res.history.dropped >= 180 and sum("x" in r for r in res.history.rows) <= 20
+    resumed = res.run(progress=False).history
+    assert os.stat(folder / "history.csv").st_ino == inode
+    assert (folder / "history.csv").read_bytes() == text
+    _all_columns_equal(whole, resumed)
+
+
 def test_history_changed_before_the_checkpoints_is_refused_in_one_line(tmp_path, capsys):
     """A digit changed in a row before both checkpoints: resuming is refused with one line
     naming history.csv (exit 2), the folder unchanged. Changed in a row after the previous

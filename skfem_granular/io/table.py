@@ -7,6 +7,11 @@ coupled run (what :class:`~skfem_granular.simulation.Simulation` records), and
 CSV file growing with the table while a run goes on (header once, rows
 appended, flushed to the disk on demand), the same text as
 :meth:`Table.to_csv` at every flush; :func:`read_csv` reads either back.
+
+A table whose rows are in such a file keeps in memory only the particle values of
+its newest rows (:data:`MEMORY_BYTES` of them): the older ones are read back from
+the file when a column is asked for, so a long many-grain run does not grow in
+memory with its history (1000 grains: 96 kB a row).
 """
 
 from __future__ import annotations
@@ -23,6 +28,10 @@ from .files import atomic_write
 #: number format of every CSV value: full double precision
 CSV_FORMAT = "%.17g"
 
+#: Bytes of particle values a table keeps in memory once its rows are in its CSV file
+#: (:class:`CSVLog`); older rows' particle values are read back from the file.
+MEMORY_BYTES = 64 * 2**20
+
 
 class Table:
     """Rows appended once per step: per-step values and per-particle ``(K,)`` arrays.
@@ -30,6 +39,11 @@ class Table:
     Subclasses name their columns in :attr:`STEP_COLUMNS` and
     :attr:`PARTICLE_COLUMNS`. Columns read as arrays: a step column ``(T,)``, a
     particle column ``(T, K)``.
+
+    Rows a :class:`CSVLog` has written keep their particle values in memory only while
+    they are among the newest :data:`MEMORY_BYTES` (:meth:`drop_written`); the first
+    :attr:`dropped` rows hold their step values only, their particle values are read
+    back from :attr:`file` when a column is asked for.
 
     Parameters
     ----------
@@ -43,6 +57,8 @@ class Table:
     def __init__(self, n_particles: int):
         self.K = int(n_particles)
         self.rows: list[dict[str, Any]] = []
+        self.file: Path | None = None
+        self.dropped = 0
 
     def add_row(self, **values) -> None:
         """Append one step; missing step values are NaN, missing particle values 0."""
@@ -58,8 +74,89 @@ class Table:
         if name in type(self).STEP_COLUMNS:
             return np.array([r.get(name, np.nan) for r in self.rows])
         if name in type(self).PARTICLE_COLUMNS:
-            return np.array([r[name] for r in self.rows]).reshape(len(self.rows), self.K)
+            out = np.empty((len(self.rows), self.K))
+            if self.dropped:
+                j, S, P = (type(self).PARTICLE_COLUMNS.index(name), len(self.STEP_COLUMNS),
+                           len(self.PARTICLE_COLUMNS))
+                out[:self.dropped] = self._file_values([S + k * P + j for k in range(self.K)])
+            for i, r in enumerate(self.rows[self.dropped:], start=self.dropped):
+                out[i] = r[name]
+            return out
         raise AttributeError(name)
+
+    def rows_kept(self) -> int:
+        """How many of the newest rows keep their particle values in memory (at least 1)."""
+        row_bytes = 8 * self.K * len(self.PARTICLE_COLUMNS)
+        return max(1, MEMORY_BYTES // max(row_bytes, 1))
+
+    def drop_written(self, path, written: int) -> None:
+        """Forget the particle values of rows that ``path`` holds, but the newest.
+
+        Parameters
+        ----------
+        path : str or Path
+            The table's wide CSV file, holding (at least) its first ``written`` rows
+            as :meth:`wide_lines` writes them.
+        written : int
+            How many rows the file holds.
+        """
+        stop = min(written, len(self.rows) - self.rows_kept())
+        if stop <= self.dropped:
+            return
+        for r in self.rows[self.dropped:stop]:
+            for c in self.PARTICLE_COLUMNS:
+                del r[c]
+        self.file, self.dropped = Path(path), stop
+
+    def adopt(self, rows: list[dict[str, Any]], file=None) -> None:
+        """Take ``rows`` as the table's rows; the first ones may hold step values only
+        (their particle values in the wide CSV ``file``, as after :meth:`drop_written`)."""
+        first = self.PARTICLE_COLUMNS[0] if self.PARTICLE_COLUMNS else None
+        dropped = next((i for i, r in enumerate(rows) if first is None or first in r),
+                       len(rows))
+        if dropped and file is None:
+            raise ValueError(f"rows: the first {dropped} hold no particle values and no file "
+                             "holds them")
+        self.rows, self.dropped = list(rows), dropped
+        self.file = Path(file) if dropped else None
+
+    def _file_values(self, columns: list[int]) -> np.ndarray:
+        """Wide-layout values ``(dropped, len(columns))`` of the rows only the file holds."""
+        name = f"history file {str(self.file)!r}"
+        try:
+            with open(self.file) as f:  # type: ignore[arg-type]
+                f.readline()
+                values = np.loadtxt(f, delimiter=",", usecols=columns, max_rows=self.dropped,
+                                    ndmin=2, dtype=np.float64)
+        except OSError as exc:
+            raise ValueError(f"{name}: cannot be read ({exc.strerror}): it holds the particle "
+                             f"values of the table's first {self.dropped} rows") from None
+        except ValueError:
+            raise ValueError(f"{name}: not a table of numbers: it holds the particle values "
+                             f"of the table's first {self.dropped} rows") from None
+        if values.shape != (self.dropped, len(columns)):
+            raise ValueError(f"{name}: {values.shape[0]} rows, fewer than the "
+                             f"{self.dropped} whose particle values it holds")
+        return values
+
+    def _file_lines(self, start: int, stop: int) -> str:
+        """Lines ``start:stop`` (rows, 0-based) of the table's file, as text."""
+        lines = []
+        try:
+            with open(self.file) as f:  # type: ignore[arg-type]
+                f.readline()
+                for i, line in enumerate(f):
+                    if i >= stop:
+                        break
+                    if i >= start:
+                        lines.append(line)
+        except OSError as exc:
+            raise ValueError(f"history file {str(self.file)!r}: cannot be read "
+                             f"({exc.strerror})") from None
+        if len(lines) != stop - start or not lines[-1].endswith("\n"):
+            raise ValueError(f"history file {str(self.file)!r}: fewer than the {stop} rows "
+                             "whose particle values it holds")
+        return "".join(lines)
 
     def wide_header(self) -> list[str]:
         """Column names of the wide layout: step columns, then ``x_0``, ``y_0``, ... by particle."""
@@ -68,6 +165,11 @@ class Table:
 
     def wide_lines(self, start: int = 0, stop: int | None = None) -> str:
         """Rows ``start:stop`` in the wide layout as CSV text (one line per row, ``\n`` ends)."""
+        n = len(self.rows)
+        stop = n if stop is None else min(stop + n if stop < 0 else stop, n)
+        if start < self.dropped and start < stop:  # rows whose values are in the file only
+            return (self._file_lines(start, min(stop, self.dropped))
+                    + self.wide_lines(self.dropped, stop))
         rows = self.rows[start:stop]
         if not rows:
             return ""
@@ -200,8 +302,11 @@ class CSVLog:
 
     Opening it writes the header and the rows the table already has (one
     atomic write, so a resumed run's file starts as exactly the rows it
-    resumes from); :meth:`flush` appends the rows added since, in one write,
-    and forces them to the disk (``flush`` + ``os.fsync``). A process killed
+    resumes from; a table whose older rows are in this very file, a resumed
+    run's, cuts the file after its rows instead); :meth:`flush` appends the
+    rows added since, in one write, and forces them to the disk (``flush`` +
+    ``os.fsync``); the table then keeps only its newest rows' particle values
+    in memory (:meth:`Table.drop_written`). A process killed
     at any moment leaves a file whose complete lines are the rows up to the
     last flush (:func:`read_csv` drops a torn last line, should a kill land
     inside an append). The SHA-256 of the bytes written is kept as they are
@@ -229,10 +334,53 @@ class CSVLog:
         head = (",".join(table.wide_header()) + "\n").encode()
         self._sha = hashlib.sha256(head)
         self._sha_before_last = self._sha.copy()
-        body, last = self._lines(0, n)
-        atomic_write(self.path, lambda tmp: Path(tmp).write_bytes(head + body + last))
-        self._written(n, body, last)
+        if table.dropped and table.file is not None and _same_file(table.file, self.path):
+            self._reopen(n)
+        else:
+            body, last = self._lines(0, n)
+            atomic_write(self.path, lambda tmp: Path(tmp).write_bytes(head + body + last))
+            self._written(n, body, last)
         self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        table.drop_written(self.path, self.written)
+
+    def _reopen(self, n: int) -> None:
+        """Keep the file that holds the table's dropped rows: cut it after row ``n``.
+
+        Its rows before the last are the table's (a resumed run's checkpoint verified
+        them); only the last may differ (in ``t``, :class:`~skfem_granular.simulation.
+        Simulation` moves it to a resumed clock), and then the file is rewritten
+        atomically with the table's copy of it. The bytes are hashed as they are read.
+        """
+        last = self.table.wide_lines(n - 1, n).encode()
+        with open(self.path, "rb") as f:
+            f.readline()  # the header, hashed already
+            for i in range(n - 1):
+                line = f.readline()
+                if not line.endswith(b"\n"):
+                    raise ValueError(f"history file {str(self.path)!r}: {i} rows, fewer than "
+                                     f"the {n} of its table")
+                self._sha.update(line)
+            before_last = f.tell()
+            same = f.readline() == last
+        if same:
+            os.truncate(self.path, before_last + len(last))
+        else:
+            def write(tmp):
+                with open(self.path, "rb") as src, open(tmp, "wb") as dst:
+                    left = before_last
+                    while left > 0:
+                        chunk = src.read(min(left, 2**24))
+                        if not chunk:
+                            raise ValueError(f"history file {str(self.path)!r}: cut short "
+                                             "while it was rewritten")
+                        dst.write(chunk)
+                        left -= len(chunk)
+                    dst.write(last)
+
+            atomic_write(self.path, write)
+        self._sha_before_last = self._sha.copy()
+        self._sha.update(last)
+        self.written = n
 
     def _lines(self, start: int, stop: int) -> tuple[bytes, bytes]:
         """Rows ``start:stop - 1`` and row ``stop - 1`` as bytes (empty if none)."""
@@ -278,6 +426,7 @@ class CSVLog:
                 view = view[os.write(self._fd, view):]
             self._written(n, body, last)
         os.fsync(self._fd)
+        self.table.drop_written(self.path, n)
         return n
 
     def close(self) -> None:
@@ -295,6 +444,13 @@ class CSVLog:
 
     def __exit__(self, *exc):
         self.close()
+        return False
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
         return False
 
 

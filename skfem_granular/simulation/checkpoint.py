@@ -15,9 +15,11 @@ and synced before every checkpoint): a checkpoint records how many rows it
 follows, the SHA-256 of the file's bytes up to the row before its last
 (header line included) and that last row itself, so its size and the time to
 write it do not grow with the run. Resuming reads the rows back from
-``history.csv`` (``%.17g`` text: the same doubles), refuses a file that is
-shorter or whose bytes differ (one line naming the file), and the resumed
-run rewrites the file to the checkpoint's rows. The last row is kept in the
+``history.csv`` a row at a time (``%.17g`` text: the same doubles; the particle
+values of the newest rows only, as a running table keeps them,
+:data:`skfem_granular.io.table.MEMORY_BYTES`), refuses a file that is shorter
+or whose bytes differ (one line naming the file), and the resumed run cuts the
+file after the checkpoint's rows. The last row is kept in the
 checkpoint because a run resumed past the end of the run it continues gives
 that row the time of its clock (``Simulation._continue_clock``), so the
 file's copy of it may differ in ``t``.

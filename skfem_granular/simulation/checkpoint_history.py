@@ -5,7 +5,6 @@ and truncates (format 4), or reads the rows a format-3 checkpoint held itself.""
 from __future__ import annotations
 
 import hashlib
-import io
 import re
 from pathlib import Path
 
@@ -130,62 +129,74 @@ def check_history(d, where: str, K: int) -> None:
         check_array(where, f"history.last.particle.{c}", a, (K,))
 
 
+def _numbers(fields: list[bytes], n: int, name: str, i: int) -> list[float]:
+    """The ``n`` numbers of row ``i`` (0-based) of a history file, from its fields."""
+    try:
+        if len(fields) != n:
+            raise ValueError
+        return [float(v) for v in fields]
+    except ValueError:
+        raise ValueError(f"{name}: row {i + 1}: not {n} numbers") from None
+
+
 def history_from_file(directory: Path, d: dict, K: int, where: str) -> list:
     """The rows a version 4 checkpoint follows, read back from ``history.csv`` and checked.
 
     The file must hold at least ``d["rows"]`` complete rows, its bytes up to the row
     before the last must have the checkpoint's SHA-256, and that last row must be the
     checkpoint's copy but for its time (see the module notes); the checkpoint's copy
-    is the one used.
+    is the one used. The file is read a row at a time; rows older than the ones a
+    table keeps in memory (:meth:`~skfem_granular.io.Table.rows_kept`) come back with
+    their step values only (:meth:`~skfem_granular.io.Table.adopt` them with the file).
     """
     path = directory / HISTORY_FILENAME
     name = f"history {str(path)!r}"
     k = d["rows"]
+    hist = History(K)
+    head = (",".join(hist.wide_header()) + "\n").encode()
+    full_from = max(k - hist.rows_kept(), 0)  # rows from here on keep their particle values
+    ncol = len(hist.wide_header())
+    sha, steps, values = hashlib.sha256(head), [], np.zeros((max(k - 1 - full_from, 0), ncol))
+    S = len(hist.STEP_COLUMNS)
     try:
-        raw = path.read_bytes()
+        with open(path, "rb") as f:
+            if f.readline() != head:
+                raise ValueError(f"{name}: its header line is not the one of {where} (the "
+                                 f"columns of a run of K = {K} particles)")
+            if k == 0:
+                return []
+            for i in range(k):
+                line = f.readline()
+                if not line.endswith(b"\n"):
+                    raise ValueError(f"{name}: {i} complete rows, fewer than the {k} {where} "
+                                     "follows (the file was cut short)")
+                if i == k - 1:
+                    theirs = line[:-1].split(b",")
+                    break
+                sha.update(line)
+                if i >= full_from:
+                    values[i - full_from] = _numbers(line[:-1].split(b","), ncol, name, i)
+                else:
+                    steps.append(_numbers(line.split(b",", S)[:S], S, name, i))
     except FileNotFoundError:
         raise ValueError(f"{name}: not found ({where} keeps its {k} rows there)") from None
     except OSError as exc:
         raise ValueError(f"{name}: cannot be read ({exc.strerror})") from None
-    hist = History(K)
-    head = (",".join(hist.wide_header()) + "\n").encode()
-    if not raw.startswith(head):
-        raise ValueError(f"{name}: its header line is not the one of {where} (the columns "
-                         f"of a run of K = {K} particles)")
-    if k == 0:
-        return []
-    ends = [len(head) - 1]  # where the header line and each row end
-    while len(ends) <= k:
-        pos = raw.find(b"\n", ends[-1] + 1)
-        if pos < 0:
-            raise ValueError(f"{name}: {len(ends) - 1} complete rows, fewer than the {k} "
-                             f"{where} follows (the file was cut short)")
-        ends.append(pos)
-    cut = ends[k - 1] + 1
-    sha = hashlib.sha256(memoryview(raw)[:cut]).hexdigest()
-    if sha != d["sha256"]:
+    if sha.hexdigest() != d["sha256"]:
         what = ("header line" if k == 1 else "header and row 1" if k == 2
                 else f"header and rows 1-{k - 1}")
         raise ValueError(f"{name}: the bytes of its {what} are not the ones {where} follows "
-                         f"(SHA-256 {sha[:16]}..., the checkpoint's {d['sha256'][:16]}...): "
-                         "the file was changed")
+                         f"(SHA-256 {sha.hexdigest()[:16]}..., the checkpoint's "
+                         f"{d['sha256'][:16]}...): the file was changed")
     last = dict(d["last"]["step"])
     last.update({c: a.copy() for c, a in d["last"]["particle"].items()})
     hist.rows = [last]
     mine = hist.wide_lines().rstrip("\n").encode().split(b",")
-    theirs = raw[cut:ends[k]].split(b",")
     if theirs[1:] != mine[1:]:  # the time may have moved to a resumed run's clock
         raise ValueError(f"{name}: row {k} is not the last row {where} follows (values other "
                          "than t differ): the file was changed")
-    values = np.zeros((0, len(mine)))
-    if k > 1:
-        try:
-            values = np.loadtxt(io.StringIO(raw[len(head):cut].decode()), delimiter=",",
-                                dtype=np.float64, ndmin=2)
-        except ValueError as exc:
-            raise ValueError(f"{name}: rows 1-{k - 1}: not a table of numbers "
-                             f"({' '.join(str(exc).split())})") from None
-    rows = hist.rows_from_wide(values)
+    rows = [dict(zip(hist.STEP_COLUMNS, v, strict=True)) for v in steps]
+    rows += hist.rows_from_wide(values)
     for c, v in d["last"]["step"].items():  # ints stay ints (the iteration counts)
         if isinstance(v, int):
             for r in rows:

@@ -72,12 +72,8 @@ def summarize(sim, hist: History) -> dict:
             "min_angle_over_steps": float(w["min_angle"]) if w["steps"] else None,
             "min_area_ratio_over_steps": float(w["min_area_ratio"]) if w["steps"] else None,
         })
-    if len(hist):
-        out["final"] = {
-            "x": hist.x[-1].tolist(),
-            "y": hist.y[-1].tolist(),
-            "vx": hist.vx[-1].tolist(),
-            "vy": hist.vy[-1].tolist(),
-            "omega": hist.omega[-1].tolist(),
-        }
+    if len(hist):  # the last row (always in memory)
+        last = hist.rows[-1]
+        out["final"] = {c: np.asarray(last[c], dtype=float).tolist()
+                        for c in ("x", "y", "vx", "vy", "omega")}
     return out

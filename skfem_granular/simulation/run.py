@@ -211,7 +211,7 @@ class Simulation:
         -------
         Simulation
             Ready to :meth:`run` from the checkpointed step; output continues
-            in ``directory`` (``history.csv`` rewritten to the checkpoint's rows
+            in ``directory`` (``history.csv`` cut after the checkpoint's rows
             when the run starts, ``.partial-*`` left-overs of a killed run removed).
             ``t_end`` may not be before the checkpoint's time. The newest usable
             checkpoint is taken: ``checkpoint.npz``, or ``checkpoint.prev.npz`` when
@@ -267,7 +267,7 @@ class Simulation:
                 scene, sim.dem, saved, contacts_active=sim.contacts_active, timings=sim.timings,
                 terms=terms)
             sim.timings["total"] += time.perf_counter() - t0  # set-up too
-        sim.history.rows = list(data["history"])
+        sim.history.adopt(data["history"], Path(directory) / checkpoint.HISTORY_FILENAME)
         sim._continue_clock()
         sim.steps_done = data["k"]
         sim._resumed_frames = data["frames"]
