@@ -273,7 +273,10 @@ class SplitCoupling(ReducedRigid):
         if not self.op.convection and self.w_mesh is None:
             return ctx
         x = self.E @ z + ctx.x_D
-        P = self.op.velocity_jacobian(x, ctx.a0, newton=False, w_mesh=self.w_mesh)
+        # its exact zeros kept: dropping them was 15 % of a 1000-grain run's time, and
+        # the matrix only multiplies
+        P = self.op.velocity_jacobian(x, ctx.a0, newton=False, w_mesh=self.w_mesh,
+                                      keep_zeros=True)
         return replace(ctx, P=P)
 
     def _follow(self, geometry, xi: np.ndarray) -> None:

@@ -261,12 +261,15 @@ class NavierStokesOperator:
         J = sp.csr_matrix(J)
         return J[self.free][:, self.free]
 
-    def _plus_convection(self, A: sp.csr_matrix, values: np.ndarray) -> sp.csr_matrix:
+    def _plus_convection(self, A: sp.csr_matrix, values: np.ndarray,
+                         keep_zeros: bool = False) -> sp.csr_matrix:
         """``A + N`` for the values of ``N`` on the convection kernel's pattern (a superset
         of ``A``'s; ``values`` is overwritten).
 
         The same matrix as scipy's sparse sum (values ``a + n``, exact zeros dropped),
-        without merging the two patterns on every call.
+        without merging the two patterns on every call; with ``keep_zeros`` the exact
+        zeros stay as stored entries, the kernel's pattern as it is (for products only:
+        a factorisation's ordering would see them).
         """
         indices, indptr = self.space.convection.pattern
         pos = self._velocity_positions(A)
@@ -274,6 +277,8 @@ class NavierStokesOperator:
             return A + sp.csr_matrix((values, indices, indptr), shape=A.shape)
         data = values
         data[pos] = A.data + data[pos]
+        if keep_zeros:
+            return sp.csr_matrix((data, indices, indptr), shape=A.shape)
         keep = data != 0
         if keep.all():
             return sp.csr_matrix((data, indices, indptr), shape=A.shape)
@@ -288,9 +293,11 @@ class NavierStokesOperator:
         return self.linear_matrix(self.velocity_jacobian(x, c_mass, newton, w_mesh), x)
 
     def velocity_jacobian(self, x: np.ndarray, c_mass: float = 0.0, newton: bool = True,
-                          w_mesh: np.ndarray | None = None) -> sp.csr_matrix:
+                          w_mesh: np.ndarray | None = None,
+                          keep_zeros: bool = False) -> sp.csr_matrix:
         """The velocity block of :meth:`jacobian` (without user terms): ``c rho M + eta K``
-        and the linearised convection (Oseen's ``rho N(u - w)`` with ``newton=False``)."""
+        and the linearised convection (Oseen's ``rho N(u - w)`` with ``newton=False``);
+        ``keep_zeros``: as :meth:`_plus_convection` (a matrix for products only)."""
         A = self.velocity_block(c_mass)
         # values on the kernel's one pattern: differences and sums entry by entry, as
         # scipy's sparse operations compute them (exact zeros dropped at the end), without
@@ -308,7 +315,7 @@ class NavierStokesOperator:
                 values = -Nw if values is None else values - Nw
         if values is not None:
             values *= self.fluid.density
-            A = self._plus_convection(A, values)
+            A = self._plus_convection(A, values, keep_zeros)
         return A
 
     def reduced_jacobian(self, x: np.ndarray, c_mass: float = 0.0,
