@@ -8,6 +8,7 @@ JSON header (checkpoints), and reads them back strictly, without pickle.
 """
 
 from . import plain
+from .csv_log import CSVLog, read_csv
 from .files import (
     PARTIAL_PREFIX,
     atomic_path,
@@ -21,7 +22,7 @@ from .files import (
     write_text,
 )
 from .pvd import PVDSeries, read_pvd
-from .table import CSVLog, History, Table, read_csv
+from .table import History, Table
 from .vtu import write_vtu
 
 __all__ = ["PARTIAL_PREFIX", "CSVLog", "History", "PVDSeries", "Table", "atomic_path",
