@@ -330,6 +330,41 @@ def check_gap_spacing(gap_spacing: object) -> float:
     return float(gap_spacing)
 
 
+def _split_joining(layout, tri, field):
+    """Split the edges that join two outlines, or an outline and a wall (node inserted,
+    mesh finished again), up to :data:`SPLIT_ROUNDS` times."""
+    for _ in range(SPLIT_ROUNDS):
+        e, c = joining_edges(layout, tri.t, tri.points.shape[1])
+        if e.shape[1] == 0:
+            break
+        f = np.where(c[0] == 0, 1.0 - WALL_FRACTION, np.where(c[1] == 0, WALL_FRACTION,
+                                                                GAP_FRACTION))
+        a, b = tri.points[:, e[0]], tri.points[:, e[1]]
+        layout = replace(layout, fixed=np.hstack([layout.fixed, a + f * (b - a)]),
+                         free=tri.points[:, layout.n_frozen:])
+        layout, tri = finish(layout, field, 0)
+    return layout, tri
+
+
+def _smooth_bad(layout, tri):
+    """Smooth the nodes of poor triangles and let them reconnect, twice at most; a round is
+    kept only if no edge joins two outlines and the worst star got no worse."""
+    first = layout.n_wall + layout.n_particle_nodes
+    for _ in range(2):
+        if not smooth_bad(tri, first):
+            break
+        nf = layout.fixed.shape[1]
+        trial = replace(layout, fixed=tri.points[:, first:first + nf],
+                        free=tri.points[:, first + nf:])
+        tri2 = triangulate(trial)
+        if (joining_edges(trial, tri2.t, tri2.points.shape[1])[0].shape[1] == 0
+                and _star_quality(tri2.points, tri2.t) >= _star_quality(tri.points, tri.t)):
+            layout, tri = trial, tri2
+        else:
+            break
+    return layout, tri
+
+
 @builds("field")
 def build_field(domain: object, particles: object, *, sigma: float | None = None,
                 delta_l: float | None = None, max_elements: int = MAX_FIELD_ELEMENTS,
@@ -371,30 +406,8 @@ def build_field(domain: object, particles: object, *, sigma: float | None = None
     free, tri = fill(layout, field, max_elements, rule)
     layout = replace(layout, free=free)
     layout, tri = finish(layout, field, relax_rounds, None if relax_rounds else tri)
-    for _ in range(SPLIT_ROUNDS):
-        e, c = joining_edges(layout, tri.t, tri.points.shape[1])
-        if e.shape[1] == 0:
-            break
-        f = np.where(c[0] == 0, 1.0 - WALL_FRACTION, np.where(c[1] == 0, WALL_FRACTION,
-                                                                GAP_FRACTION))
-        a, b = tri.points[:, e[0]], tri.points[:, e[1]]
-        layout = replace(layout, fixed=np.hstack([layout.fixed, a + f * (b - a)]),
-                         free=tri.points[:, layout.n_frozen:])
-        layout, tri = finish(layout, field, 0)
-    first = layout.n_wall + layout.n_particle_nodes
-    for _ in range(2):
-        if not smooth_bad(tri, first):
-            break
-        # let the smoothed nodes reconnect; keep the result only if nothing got worse
-        nf = layout.fixed.shape[1]
-        trial = replace(layout, fixed=tri.points[:, first:first + nf],
-                        free=tri.points[:, first + nf:])
-        tri2 = triangulate(trial)
-        if (joining_edges(trial, tri2.t, tri2.points.shape[1])[0].shape[1] == 0
-                and _star_quality(tri2.points, tri2.t) >= _star_quality(tri.points, tri.t)):
-            layout, tri = trial, tri2
-        else:
-            break
+    layout, tri = _split_joining(layout, tri, field)
+    layout, tri = _smooth_bad(layout, tri)
     recipe = Recipe("field", domain, tuple(outlines),
                     dict(sigma=sigma, delta_l=delta_l, max_elements=max_elements,
                          relax_rounds=relax_rounds, **({} if size is None else {"size": size}),

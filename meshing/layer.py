@@ -41,9 +41,10 @@ def nearest_wall_point(D: NDArray[np.float64], x: NDArray[np.float64]) -> NDArra
     return D[:, k] + project_to_edge(D, k, x) * E[:, k] / np.hypot(*E[:, k])
 
 
-def layer_nodes(D: NDArray[np.float64], outlines: list[NDArray[np.float64]],
-                field: SizeField) -> NDArray[np.float64]:
-    """The first layer of nodes over every outline, pulled into narrow gaps (module notes)."""
+def _samples(outlines: list[NDArray[np.float64]]) -> tuple:
+    """Where the first layer starts, per particle its edge midpoints then its nodes:
+    points ``S``, directions ``N`` (outward normals, bisectors at nodes), target heights
+    ``T``, owners and kinds (0 edge midpoint, 1 node, 2 corner)."""
     counts = np.array([P.shape[1] for P in outlines])
     X = np.hstack(outlines)
     start = np.cumsum(counts) - counts
@@ -67,6 +68,13 @@ def layer_nodes(D: NDArray[np.float64], outlines: list[NDArray[np.float64]],
     own = np.concatenate([owner, owner])[order]
     kind = np.concatenate([np.zeros(L.size, dtype=np.int8),
                            np.where(corner, 2, 1).astype(np.int8)])[order]
+    return S, N, T, own, kind
+
+
+def layer_nodes(D: NDArray[np.float64], outlines: list[NDArray[np.float64]],
+                field: SizeField) -> NDArray[np.float64]:
+    """The first layer of nodes over every outline, pulled into narrow gaps (module notes)."""
+    S, N, T, own, kind = _samples(outlines)
     d, idx = field.nearest(S)
     d = np.where(idx == own[:, None], np.inf, d)
     j = np.argmin(d, axis=1)

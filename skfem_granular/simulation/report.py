@@ -16,19 +16,10 @@ def summarize(sim, hist: History) -> dict:
     the loop) or ``"running"``.
     """
     sc = sim.scene
-    eff = sc.effects
-    active = {
-        "fluid": not sc.dry,
-        "gravity": eff.gravity,
-        "convection": (not sc.dry) and eff.convection,
-        "contacts": sim.contacts_active,
-        "rotation": eff.rotation,
-        "remeshing": (not sc.dry) and eff.remeshing,
-    }
     ratios = sim.remesh_energy_ratios
     out = {
         "scene": sc.name,
-        "effects": active,
+        "effects": _effects(sim),
         "coupling": None if sc.dry else sc.coupling,
         "mesh_motion": None if sc.dry else ("ale" if sc.moving_mesh else "fixed"),
         "particles": sim.dem.n,
@@ -54,26 +45,40 @@ def summarize(sim, hist: History) -> dict:
         "wall_time": {k: round(v, 6) for k, v in sim.timings.items()},
     }
     if not sc.dry:
-        import meshing
-
-        st = meshing.mesh_stats(sim.mesh)
-        out["mesh"] = {
-            "kind": getattr(getattr(sim.stepper.meshed, "recipe", None), "kind",
-                            sc.mesh.kind),  # what "auto" chose
-            "vertices": st.n_vertices,
-            "p2_nodes": st.n_p2_nodes,
-            "triangles": st.n_triangles,
-            "dofs": int(sim.space.N),
-            "min_angle": float(st.min_angle),
-        }
-        w = sim.stepper.worst_mesh  # the steps of this process (a resumed run: since then)
-        out["mesh"].update({
-            "steps_checked": w["steps"],
-            "min_angle_over_steps": float(w["min_angle"]) if w["steps"] else None,
-            "min_area_ratio_over_steps": float(w["min_area_ratio"]) if w["steps"] else None,
-        })
+        out["mesh"] = _mesh(sim)
     if len(hist):  # the last row (always in memory)
         last = hist.rows[-1]
         out["final"] = {c: np.asarray(last[c], dtype=float).tolist()
                         for c in ("x", "y", "vx", "vy", "omega")}
+    return out
+
+
+def _effects(sim) -> dict:
+    """The effects the run simulated (what its scene asked for, ``"auto"`` decided)."""
+    sc, eff = sim.scene, sim.scene.effects
+    return {"fluid": not sc.dry, "gravity": eff.gravity,
+            "convection": (not sc.dry) and eff.convection, "contacts": sim.contacts_active,
+            "rotation": eff.rotation, "remeshing": (not sc.dry) and eff.remeshing}
+
+
+def _mesh(sim) -> dict:
+    """The mesh in use: kind, sizes, quality (and the worst quality over the steps)."""
+    import meshing
+
+    st = meshing.mesh_stats(sim.mesh)
+    out = {
+        "kind": getattr(getattr(sim.stepper.meshed, "recipe", None), "kind",
+                        sim.scene.mesh.kind),  # what "auto" chose
+        "vertices": st.n_vertices,
+        "p2_nodes": st.n_p2_nodes,
+        "triangles": st.n_triangles,
+        "dofs": int(sim.space.N),
+        "min_angle": float(st.min_angle),
+    }
+    w = sim.stepper.worst_mesh  # the steps of this process (a resumed run: since then)
+    out.update({
+        "steps_checked": w["steps"],
+        "min_angle_over_steps": float(w["min_angle"]) if w["steps"] else None,
+        "min_area_ratio_over_steps": float(w["min_area_ratio"]) if w["steps"] else None,
+    })
     return out

@@ -160,6 +160,25 @@ def _prepare_all(executor: Executor, runs: list, packings: Path) -> dict:
     return errors
 
 
+def _failed(run: CollapseRun, why: str) -> dict:
+    """The record of a run that failed for ``why``."""
+    return {"status": "failed", "message": f"{run.key}: {why}"}
+
+
+def _checked_runs(runs: Iterable[CollapseRun], workers: int) -> list[CollapseRun]:
+    """``runs`` as a list, refused in one line when ``workers`` is not a count >= 1, a run
+    is not a :class:`~.collapse_run.CollapseRun` or two runs share a folder."""
+    runs = list(runs)
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
+    if bad := [r for r in runs if not isinstance(r, CollapseRun)]:
+        raise TypeError(f"runs: {type(bad[0]).__name__} given; each must be a CollapseRun")
+    keys = [r.key for r in runs]
+    if dup := sorted({k for k in keys if keys.count(k) > 1}):
+        raise ValueError(f"runs: {', '.join(dup)} given more than once (one folder each)")
+    return runs
+
+
 def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
                        executor: Executor | None = None, workers: int = 1,
                        on_record: Callable[[dict], None] | None = None,
@@ -201,14 +220,7 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
     TypeError
         Something other than a :class:`~.collapse_run.CollapseRun` among ``runs``.
     """
-    runs = list(runs)
-    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
-        raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
-    if bad := [r for r in runs if not isinstance(r, CollapseRun)]:
-        raise TypeError(f"runs: {type(bad[0]).__name__} given; each must be a CollapseRun")
-    keys = [r.key for r in runs]
-    if dup := sorted({k for k in keys if keys.count(k) > 1}):
-        raise ValueError(f"runs: {', '.join(dup)} given more than once (one folder each)")
+    runs = _checked_runs(runs, workers)
     out_dir = Path(out_dir).resolve()
     packings = out_dir / "packings" if packings is None else Path(packings).resolve()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -230,15 +242,12 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
             if log is not None:
                 log(rec["message"])
 
-    def failed(run: CollapseRun, why: str) -> dict:
-        return {"status": "failed", "message": f"{run.key}: {why}"}
-
     if executor is None and workers == 1:
         for run in runs:
             try:
                 rec = execute_collapse(run, out_dir, packings)
             except Exception as exc:  # noqa: BLE001 - one failed run must not lose the others
-                rec = failed(run, f"{type(exc).__name__}: {exc}")
+                rec = _failed(run, f"{type(exc).__name__}: {exc}")
             arrived(run, rec)
             if rec["status"] == "stopped":  # asked to stop: the remaining runs wait
                 break
@@ -253,7 +262,7 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
             futs = {}
             for r in runs:
                 if (why := unprepared.get(_column(r))) is not None:
-                    arrived(r, failed(r, f"its column could not be prepared: {why}"))
+                    arrived(r, _failed(r, f"its column could not be prepared: {why}"))
                 else:
                     futs[executor.submit(execute_collapse, r, out_dir, packings)] = r
             for fut in as_completed(futs):
@@ -261,11 +270,11 @@ def run_collapse_study(runs: Iterable[CollapseRun], out_dir, *, packings=None,
                 try:
                     rec = fut.result()
                 except Exception as exc:  # noqa: BLE001 - one failed run must not lose the others
-                    rec = failed(run, f"{type(exc).__name__}: {exc}")
+                    rec = _failed(run, f"{type(exc).__name__}: {exc}")
                 arrived(run, rec)
         finally:
             if own is not None:
                 own.shutdown(wait=True, cancel_futures=True)
-    study.records = [done[k] for k in keys if k in done]
+    study.records = [done[r.key] for r in runs if r.key in done]
     study.summary = summarise_collapses(study.records)
     return study

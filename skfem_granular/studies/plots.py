@@ -120,31 +120,19 @@ def plot_convergence(rows, path, title=""):
     )
 
 
-def plot_fig2(rows, path, title=""):
-    """The paper's Fig. 2, measured: discretisation error falls, rounding error grows."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+def _fig2_discretisation(ax, rows):
+    """Discretisation error against DOFs, one line per mesh family."""
     for fam in ("uniform", "graded"):
-        sel = sorted(
-            (
-                r
-                for r in rows
-                if r["family"] == fam
-                and not r["seed"]
-                and r["error"]
-                and np.isfinite(r["error"])
-                and r["error"] > 0
-            ),
-            key=lambda r: r["dofs"],
-        )
+        sel = sorted((r for r in rows if r["family"] == fam and not r["seed"] and r["error"]
+                      and np.isfinite(r["error"]) and r["error"] > 0),
+                     key=lambda r: r["dofs"])
         m, c = STYLE[fam]
-        ax.loglog(
-            [r["dofs"] for r in sel],
-            [r["error"] for r in sel],
-            m + "-",
-            color=c,
-            label=f"discretisation error, {_label(fam)}",
-        )
+        ax.loglog([r["dofs"] for r in sel], [r["error"] for r in sel], m + "-", color=c,
+                  label=f"discretisation error, {_label(fam)}")
+
+
+def _fig2_rounding(ax, rows):
+    """The rounding-error measures against DOFs (exact zeros drawn at 1e-17)."""
     for col, m, lab in (
         ("rounding_renumber", "x", "rounding: spread over node renumberings"),
         ("rounding_field", "1", "rounding: renumbering spread, pressure field"),
@@ -158,47 +146,37 @@ def plot_fig2(rows, path, title=""):
         ax.loglog([r["dofs"] for r in pos], [r[col] for r in pos], m, ms=8, color=color, label=lab)
         zero = [r for r in sel if r[col] == 0]
         if zero:
-            ax.loglog(
-                [r["dofs"] for r in zero],
-                [1e-17] * len(zero),
-                m,
-                ms=8,
-                color="0.5",
-                label=f"{lab.split(':')[1].strip()} = 0 exactly (drawn at 1e-17)",
-            )
+            ax.loglog([r["dofs"] for r in zero], [1e-17] * len(zero), m, ms=8, color="0.5",
+                      label=f"{lab.split(':')[1].strip()} = 0 exactly (drawn at 1e-17)")
+
+
+def _fig2_fits(ax, rows):
+    """The two fitted power laws and where they cross (the sweet spot)."""
     n_star, disc, rnd = sweet_spot(rows)
+    if not (disc and rnd):
+        return
     dofs = [r["dofs"] for r in rows]
-    if disc and rnd:
-        lo, hi = min(dofs), max(dofs)
-        hi_plot = max(hi, n_star or hi) * 1.5
-        x = np.geomspace(lo, hi_plot, 100)
-        ax.loglog(x, disc[0] * x ** -disc[1], ":", color="C1", lw=1)
-        ax.loglog(
-            x,
-            rnd[0] * x ** rnd[1],
-            ":",
-            color="k",
-            lw=1,
-            label=f"fits: disc ~ N^-{disc[1]:.2f}, rounding ~ N^{rnd[1]:.2f}",
-        )
-        if n_star:
-            extra = " (extrapolated)" if n_star > hi else ""
-            ax.axvline(
-                n_star,
-                color="C2",
-                lw=2,
-                alpha=0.6,
-                label=f"sweet spot (fits cross) N = {n_star:.2g} DOFs{extra}",
-            )
-    return _finish(
-        plt,
-        fig,
-        ax,
-        path,
-        "DOFs",
-        title or "discretisation vs rounding error (paper Fig. 2, measured)",
-        fontsize=7,
-    )
+    lo, hi = min(dofs), max(dofs)
+    x = np.geomspace(lo, max(hi, n_star or hi) * 1.5, 100)
+    ax.loglog(x, disc[0] * x ** -disc[1], ":", color="C1", lw=1)
+    ax.loglog(x, rnd[0] * x ** rnd[1], ":", color="k", lw=1,
+              label=f"fits: disc ~ N^-{disc[1]:.2f}, rounding ~ N^{rnd[1]:.2f}")
+    if n_star:
+        extra = " (extrapolated)" if n_star > hi else ""
+        ax.axvline(n_star, color="C2", lw=2, alpha=0.6,
+                   label=f"sweet spot (fits cross) N = {n_star:.2g} DOFs{extra}")
+
+
+def plot_fig2(rows, path, title=""):
+    """The paper's Fig. 2, measured: discretisation error falls, rounding error grows."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    _fig2_discretisation(ax, rows)
+    _fig2_rounding(ax, rows)
+    _fig2_fits(ax, rows)
+    return _finish(plt, fig, ax, path, "DOFs",
+                   title or "discretisation vs rounding error (paper Fig. 2, measured)",
+                   fontsize=7)
 
 
 def all_plots(rows, out_dir, study):

@@ -168,6 +168,36 @@ def _draw_particles(pl, particles, z):
                         line_width=width, lighting=False)
 
 
+def _clear_runs(pieces: dict, cell: np.ndarray, speed: np.ndarray, shape: tuple) -> list:
+    """The stretches of the traced lines (``pieces``: per seed, its backward and forward
+    point ids) that stay clear of the lines kept before, fastest seed first, on the
+    occupancy grid of ``shape`` whose cell holds each point (``cell``)."""
+    owner = np.full(shape, -1, dtype=np.int64)  # line that first entered a cell
+    runs = []
+    for line, seed in enumerate(sorted(pieces, key=lambda s: -speed[s])):
+        i, j = cell[pieces[seed][0][0]]
+        if np.any(owner[i - 2 : i + 3, j - 2 : j + 3] >= 0):
+            continue  # the seed lies within about 2/3 sep of a line
+        kept = []
+        for ids in pieces[seed]:
+            stop = len(ids)
+            for n, p in enumerate(ids):
+                i, j = cell[p]
+                near = owner[i - 1 : i + 2, j - 1 : j + 2]
+                if np.any((near >= 0) & (near != line)):
+                    stop = n  # within about sep/3..sep of an earlier line
+                    break
+                if owner[i, j] < 0:
+                    owner[i, j] = line
+            kept.append(ids[:stop])
+        ids = np.r_[kept[0][::-1], *(k[1:] for k in kept[1:])]
+        if len(ids) >= 8:
+            runs.append(ids)
+        else:
+            owner[owner == line] = -1
+    return runs
+
+
 def _streamlines(pv, surface, flow, box, density: int):
     """Streamlines about ``sep`` apart, ``sep`` = shorter side of ``box`` / ``density``.
 
@@ -214,29 +244,7 @@ def _streamlines(pv, surface, flow, box, density: int):
             np.clip(((P[:, 1] - y0) / c).astype(int) + 2, 2, ny - 3),
         ]
     )
-    owner = np.full((nx, ny), -1, dtype=np.int64)  # line that first entered a cell
-    runs = []
-    for line, seed in enumerate(sorted(pieces, key=lambda s: -speed[s])):
-        i, j = cell[pieces[seed][0][0]]
-        if np.any(owner[i - 2 : i + 3, j - 2 : j + 3] >= 0):
-            continue  # the seed lies within about 2/3 sep of a line
-        kept = []
-        for ids in pieces[seed]:
-            stop = len(ids)
-            for n, p in enumerate(ids):
-                i, j = cell[p]
-                near = owner[i - 1 : i + 2, j - 1 : j + 2]
-                if np.any((near >= 0) & (near != line)):
-                    stop = n  # within about sep/3..sep of an earlier line
-                    break
-                if owner[i, j] < 0:
-                    owner[i, j] = line
-            kept.append(ids[:stop])
-        ids = np.r_[kept[0][::-1], *(k[1:] for k in kept[1:])]
-        if len(ids) >= 8:
-            runs.append(ids)
-        else:
-            owner[owner == line] = -1
+    runs = _clear_runs(pieces, cell, speed, (nx, ny))
     if not runs:
         return pv.PolyData()
     lines = np.concatenate([np.r_[len(r), r] for r in runs])
