@@ -213,27 +213,9 @@ class BDF2Integrator:
             When the corrector does not converge.
         """
         nu = self.space.nu
-        rho = self.fluid.density
-        bdf2 = self._bdf2(dt)
-        a0 = bdf2.a0
         u_n = self.x[:nu]
-        hist = bdf2.history(u_n, self.u_prev)
-        t0 = time.perf_counter()
-        op, w_mesh = self._moved_operator(bdf2)
-        op.time = self.t + dt  # where the user terms are assembled
-        sp_ = op.space
-        rhs_u = -rho * (sp_.M @ hist)
-        t_op = time.perf_counter()
-        A_uu = self.factors.operator(a0)
-        t0 += time.perf_counter() - t_op  # the cache books its assembly and factorisation
-        if w_mesh is not None:  # the residual on the moved mesh; the factors are the chord's
-            A_uu = op.velocity_block(a0)
-        u_pred = ts.predict(u_n, self.du, self.du_prev, dt, self.dt_prev)
-        x = self.x.copy()
-        x[:nu] = u_pred
-        op.apply_dirichlet(x, self.t + dt)
+        a0, op, w_mesh, rhs_u, A_uu, u_pred, x = self._prepare(dt)
         free = op.free
-        self.timings["assembly"] += time.perf_counter() - t0
         # Navier-Stokes: the chord loop re-evaluates the exact residual, so the correction
         # needs no refinement (same iterates to ~1e-13, 2x fewer triangular solves); Stokes
         # steps stop after one exact solve
@@ -278,11 +260,41 @@ class BDF2Integrator:
                 f"{self.newton_tol:.0e} x velocity scale {it_state['scale']:.2e})")
         self._last_rhs = rhs_u
         self._trial = (dt, op, w_mesh, it)
-        err = None
-        if self.dt_prev is not None and self.scheme == "bdf2":
-            est = ts.milne_factor(dt, self.dt_prev) * (x[:nu] - u_pred)
-            err = float(np.abs(est).max()) / max(float(np.abs(x[:nu]).max()), self.velocity_scale)
-        return x, it, err, stall.refreshes
+        return x, it, self._error_estimate(dt, x[:nu], u_pred), stall.refreshes
+
+    def _prepare(self, dt: float) -> tuple:
+        """What a step of ``dt`` starts from: ``(a0, op, w_mesh, rhs_u, A_uu, u_pred, x)``:
+        the BDF2 coefficient, the operator on the (moved) mesh and its mesh velocity, the
+        history's right-hand side, the velocity block, the predicted velocity and the
+        first iterate (Dirichlet values set)."""
+        nu = self.space.nu
+        bdf2 = self._bdf2(dt)
+        a0 = bdf2.a0
+        u_n = self.x[:nu]
+        hist = bdf2.history(u_n, self.u_prev)
+        t0 = time.perf_counter()
+        op, w_mesh = self._moved_operator(bdf2)
+        op.time = self.t + dt  # where the user terms are assembled
+        rhs_u = -self.fluid.density * (op.space.M @ hist)
+        t_op = time.perf_counter()
+        A_uu = self.factors.operator(a0)
+        t0 += time.perf_counter() - t_op  # the cache books its assembly and factorisation
+        if w_mesh is not None:  # the residual on the moved mesh; the factors are the chord's
+            A_uu = op.velocity_block(a0)
+        u_pred = ts.predict(u_n, self.du, self.du_prev, dt, self.dt_prev)
+        x = self.x.copy()
+        x[:nu] = u_pred
+        op.apply_dirichlet(x, self.t + dt)
+        self.timings["assembly"] += time.perf_counter() - t0
+        return a0, op, w_mesh, rhs_u, A_uu, u_pred, x
+
+    def _error_estimate(self, dt: float, u_new: np.ndarray, u_pred: np.ndarray) -> float | None:
+        """Milne's scaled local error estimate of the step (None on a first step or with
+        backward Euler)."""
+        if self.dt_prev is None or self.scheme != "bdf2":
+            return None
+        est = ts.milne_factor(dt, self.dt_prev) * (u_new - u_pred)
+        return float(np.abs(est).max()) / max(float(np.abs(u_new).max()), self.velocity_scale)
 
     def commit(self, x_new: np.ndarray, dt: float) -> None:
         """Make ``x_new`` the state at ``t + dt`` and shift the histories."""
