@@ -76,6 +76,17 @@ def test_velocity_block_positions_in_the_convection_pattern(space):
     assert not positions_in(indptr, indices, outside.indptr, outside.indices,
                             np.empty(1, dtype=np.int64))
 
+    # the velocity block added into convection values there: numpy's gather, add and
+    # scatter, bit for bit (what the Oseen matrix of a split step is made of)
+    from skfem_granular.fluid.pattern_numba import add_at_positions
+
+    rng = np.random.default_rng(1)
+    wide = rng.standard_normal(indices.size)
+    expected = wide.copy()
+    expected[pos] = K.data + expected[pos]
+    add_at_positions(wide, pos, K.data)
+    np.testing.assert_array_equal(wide, expected)
+
 
 def _scipy_input(A, nu, perm, Mp, delta):
     """SuperLU's input through scipy: ``D A D - reg``, rows gathered, columns relabelled,

@@ -275,8 +275,10 @@ class NavierStokesOperator:
         pos = self._velocity_positions(A)
         if pos is None:
             return A + sp.csr_matrix((values, indices, indptr), shape=A.shape)
+        from .pattern_numba import add_at_positions
+
         data = values
-        data[pos] = A.data + data[pos]
+        add_at_positions(data, pos, A.data)  # data[pos] = A.data + data[pos]
         if keep_zeros:
             return sp.csr_matrix((data, indices, indptr), shape=A.shape)
         keep = data != 0

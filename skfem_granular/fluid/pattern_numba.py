@@ -11,7 +11,8 @@ million unknowns, where a remesh built its patterns in seconds.
   ``return_inverse`` gives them;
 - :func:`vector_pattern`: the pattern of a 2-component P2 field's element matrices
   from the scalar one (:func:`~skfem_granular.fluid.convection.element_pattern`);
-- :func:`positions_in`: where the entries of one sorted pattern sit in a wider one.
+- :func:`positions_in`: where the entries of one sorted pattern sit in a wider one;
+- :func:`add_at_positions`: one pattern's values added into the wider one's there.
 
 Compiled with numba at the first call (:func:`~skfem_granular._jit.lazy_njit`,
 ``cache=True``).
@@ -197,3 +198,12 @@ def stack_saddle(a_data, a_ind, a_ptr, b_data, b_ind, b_ptr, shift,
             q += 1
     indptr[na + nc] = q
     return data, indices, indptr
+
+
+@lazy_njit
+def add_at_positions(wide, pos, values):  # pragma: no cover (compiled)
+    """``wide[pos] = values + wide[pos]`` in place, for distinct ``pos`` (one pass; the
+    same sums as numpy's gather, add and scatter, without their two temporaries)."""
+    for k in range(pos.size):
+        wide[pos[k]] = values[k] + wide[pos[k]]
+
