@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -85,16 +86,10 @@ class CSVLog:
         if same:
             os.truncate(self.path, before_last + len(last))
         else:
-            def write(tmp):
-                with open(self.path, "rb") as src, open(tmp, "wb") as dst:
-                    left = before_last
-                    while left > 0:
-                        chunk = src.read(min(left, 2**24))
-                        if not chunk:
-                            raise ValueError(f"history file {str(self.path)!r}: cut short "
-                                             "while it was rewritten")
-                        dst.write(chunk)
-                        left -= len(chunk)
+            def write(tmp):  # the file's copy, cut before its last row, and the table's
+                shutil.copyfile(self.path, tmp)
+                os.truncate(tmp, before_last)
+                with open(tmp, "ab") as dst:
                     dst.write(last)
 
             atomic_write(self.path, write)

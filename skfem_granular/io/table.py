@@ -37,10 +37,10 @@ class Table:
     :attr:`PARTICLE_COLUMNS`. Columns read as arrays: a step column ``(T,)``, a
     particle column ``(T, K)``.
 
-    Rows a :class:`~skfem_granular.io.CSVLog` has written keep their particle values in memory only while
-    they are among the newest :data:`MEMORY_BYTES` (:meth:`drop_written`); the first
-    :attr:`dropped` rows hold their step values only, their particle values are read
-    back from :attr:`file` when a column is asked for.
+    Rows a :class:`~skfem_granular.io.CSVLog` has written keep their particle values in
+    memory only while they are among the newest :data:`MEMORY_BYTES`
+    (:meth:`drop_written`); the first :attr:`dropped` rows hold their step values only,
+    their particle values are read back from :attr:`file` when a column is asked for.
 
     Parameters
     ----------
